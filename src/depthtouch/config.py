@@ -1,0 +1,300 @@
+"""Frozen per-stage configuration, with units in the names, loadable from and savable to TOML.
+
+Every field has a documented default; ``validate()`` raises :class:`ConfigError` naming the
+allowed range. A TOML file has one table per stage (``[surface]``, ``[regions]``, ...), and may
+leave out anything that keeps its default.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import sys
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from .errors import ConfigError
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover - Python 3.10
+    import tomli as tomllib
+
+
+def _range(name: str, value: float, lo: float, hi: float, *, lo_open: bool = False) -> None:
+    bad = value <= lo if lo_open else value < lo
+    if bad or value > hi or value != value:
+        lb = "(" if lo_open else "["
+        raise ConfigError(f"{name} = {value!r} is out of range; allowed {lb}{lo}, {hi}]")
+
+
+@dataclass(frozen=True)
+class SurfaceConfig:
+    """Surface model ("virtual touch panel").
+
+    learn_s: seconds of empty-surface frames to learn from (default 1.5, range (0, 60]).
+    learn_frames: number of frames instead of seconds when set (>= 2).
+    statistic: per-pixel surface depth: "mean", "mode" (the paper's two), or "median".
+    min_valid_fraction: a pixel is usable when at least this share of its learning samples is
+        valid (non-zero) (default 0.5, range (0, 1]).
+    noise_floor_mm: lower bound of a pixel's noise sigma in mm (default 0.5, range [0, 50]).
+    """
+
+    learn_s: float = 1.5
+    learn_frames: int | None = None
+    statistic: str = "median"
+    min_valid_fraction: float = 0.5
+    noise_floor_mm: float = 0.5
+
+    def validate(self) -> None:
+        _range("surface.learn_s", self.learn_s, 0.0, 60.0, lo_open=True)
+        if self.learn_frames is not None and self.learn_frames < 2:
+            raise ConfigError(
+                f"surface.learn_frames = {self.learn_frames} is too small; use at least 2"
+            )
+        if self.statistic not in ("mean", "mode", "median"):
+            raise ConfigError(
+                f"surface.statistic = {self.statistic!r} is unknown; use mean, mode or median"
+            )
+        _range("surface.min_valid_fraction", self.min_valid_fraction, 0.0, 1.0, lo_open=True)
+        _range("surface.noise_floor_mm", self.noise_floor_mm, 0.0, 50.0)
+
+
+@dataclass(frozen=True)
+class RegionConfig:
+    """Touch regions: the band Tl < height < Tu, labelled and size-filtered.
+
+    noise_k: Tl of a pixel is max(tl_floor_mm, noise_k * sigma) (default 3.0, range [0, 20]).
+    tl_floor_mm: lower bound of Tl in mm (default 4.0, range [0, 50]).
+    tu_mm: Tu, finger scale; pixels higher than this are hand/arm (default 25.0, (0, 200]).
+    hand_max_mm: pixels higher than this above the surface are not a hand (default 600, > tu).
+    min_area_mm2: S_min as an area on the surface (default 40 mm^2); converted to pixels from
+        the distance and focal length, and never fewer than min_area_floor_px.
+    min_area_floor_px: lower bound of S_min in pixels (default 4).
+    open_px: side of the square opening applied to the band mask before labelling, which removes
+        one-pixel noise and depth-edge slivers (default 3; 1 = off).
+    """
+
+    noise_k: float = 3.0
+    tl_floor_mm: float = 4.0
+    tu_mm: float = 25.0
+    hand_max_mm: float = 600.0
+    min_area_mm2: float = 40.0
+    min_area_floor_px: int = 4
+    open_px: int = 3
+
+    def validate(self) -> None:
+        _range("regions.noise_k", self.noise_k, 0.0, 20.0)
+        _range("regions.tl_floor_mm", self.tl_floor_mm, 0.0, 50.0)
+        _range("regions.tu_mm", self.tu_mm, 0.0, 200.0, lo_open=True)
+        if self.tu_mm <= self.tl_floor_mm:
+            raise ConfigError(
+                f"regions.tu_mm = {self.tu_mm} must be above regions.tl_floor_mm = "
+                f"{self.tl_floor_mm}"
+            )
+        _range("regions.hand_max_mm", self.hand_max_mm, self.tu_mm, 5000.0, lo_open=True)
+        _range("regions.min_area_mm2", self.min_area_mm2, 0.0, 10000.0)
+        _range("regions.min_area_floor_px", self.min_area_floor_px, 1, 10000)
+        _range("regions.open_px", self.open_px, 1, 15)
+
+
+@dataclass(frozen=True)
+class TouchPointConfig:
+    """Touch point per region.
+
+    method: "extremity" (fingertip extremity along the direction from the hand, sub-pixel) or
+        "paper" (Lee & Kwon: search band Ds from the bounding box edge, candidates within Tt of
+        the surface, 3x3 block confirmation).
+    tip_radius_mm: fallback fingertip radius when the width cannot be measured (default 7.0).
+    touch_on_mm: a region's tip must come this close to the surface to go down (default 14).
+    touch_off_mm: a touching tip is lifted above this height (hysteresis; default 18).
+    paper_ds_px: Ds of the paper's method (default 6).
+    paper_tt_mm: Tt of the paper's method (default 12.0).
+    """
+
+    method: str = "extremity"
+    tip_radius_mm: float = 7.0
+    touch_on_mm: float = 14.0
+    touch_off_mm: float = 18.0
+    paper_ds_px: int = 6
+    paper_tt_mm: float = 12.0
+
+    def validate(self) -> None:
+        if self.method not in ("extremity", "paper"):
+            raise ConfigError(
+                f"touchpoints.method = {self.method!r} is unknown; use extremity or paper"
+            )
+        _range("touchpoints.tip_radius_mm", self.tip_radius_mm, 0.0, 30.0, lo_open=True)
+        _range("touchpoints.touch_on_mm", self.touch_on_mm, 0.0, 200.0, lo_open=True)
+        _range("touchpoints.touch_off_mm", self.touch_off_mm, self.touch_on_mm, 200.0)
+        _range("touchpoints.paper_ds_px", self.paper_ds_px, 1, 100)
+        _range("touchpoints.paper_tt_mm", self.paper_tt_mm, 0.0, 200.0, lo_open=True)
+
+
+@dataclass(frozen=True)
+class TrackingConfig:
+    """Tracking: optimal assignment, debounce and grace.
+
+    gate_mm: largest jump between frames that keeps an id, when K is known (default 40).
+    gate_px: the same when K is unknown (default 25).
+    down_frames: consecutive frames a new contact needs before ``down`` (default 2, >= 1).
+    up_frames: frames a contact may be missing before ``up`` (grace, default 2, >= 1).
+    """
+
+    gate_mm: float = 40.0
+    gate_px: float = 25.0
+    down_frames: int = 2
+    up_frames: int = 2
+
+    def validate(self) -> None:
+        _range("tracking.gate_mm", self.gate_mm, 0.0, 1000.0, lo_open=True)
+        _range("tracking.gate_px", self.gate_px, 0.0, 1000.0, lo_open=True)
+        _range("tracking.down_frames", self.down_frames, 1, 30)
+        _range("tracking.up_frames", self.up_frames, 1, 30)
+
+
+@dataclass(frozen=True)
+class FilterConfig:
+    """Touch path correction: ``name`` of the filter and its parameters (see filters.py)."""
+
+    name: str = "none"
+    params: Mapping[str, float] = field(default_factory=dict)
+
+    def validate(self) -> None:
+        for k, v in self.params.items():
+            if not isinstance(v, (int, float)) or isinstance(v, bool):
+                raise ConfigError(f"filter.params.{k} = {v!r} must be a number")
+
+
+@dataclass(frozen=True)
+class PipelineConfig:
+    """All stages together; the unit of a TOML config file."""
+
+    surface: SurfaceConfig = field(default_factory=SurfaceConfig)
+    regions: RegionConfig = field(default_factory=RegionConfig)
+    touchpoints: TouchPointConfig = field(default_factory=TouchPointConfig)
+    tracking: TrackingConfig = field(default_factory=TrackingConfig)
+    filter: FilterConfig = field(default_factory=FilterConfig)
+
+    def validate(self) -> PipelineConfig:
+        for f in dataclasses.fields(self):
+            getattr(self, f.name).validate()
+        return self
+
+    def replace(self, **stages: Any) -> PipelineConfig:
+        """A copy with some stage fields changed: ``cfg.replace(regions={"tu_mm": 30})``."""
+        changes = {}
+        for name, values in stages.items():
+            if name not in _STAGES:
+                raise ConfigError(f"unknown config section [{name}]; use one of {sorted(_STAGES)}")
+            changes[name] = _build(_STAGES[name], name, {**_asdict(getattr(self, name)), **values})
+        return dataclasses.replace(self, **changes).validate()
+
+
+_STAGES: dict[str, type] = {
+    "surface": SurfaceConfig,
+    "regions": RegionConfig,
+    "touchpoints": TouchPointConfig,
+    "tracking": TrackingConfig,
+    "filter": FilterConfig,
+}
+
+
+def _asdict(obj: Any) -> dict[str, Any]:
+    return {f.name: getattr(obj, f.name) for f in dataclasses.fields(obj)}
+
+
+def _build(cls: type, section: str, values: Mapping[str, Any]) -> Any:
+    if not isinstance(values, Mapping):
+        raise ConfigError(f"config section [{section}] must be a table, got {type(values).__name__}")
+    names = {f.name: f for f in dataclasses.fields(cls)}
+    unknown = sorted(set(values) - set(names))
+    if unknown:
+        raise ConfigError(
+            f"unknown key {section}.{unknown[0]}; allowed: {', '.join(sorted(names))}"
+        )
+    kwargs: dict[str, Any] = {}
+    for k, v in values.items():
+        default = getattr(cls(), k)
+        if k == "params":
+            if not isinstance(v, Mapping):
+                raise ConfigError(f"{section}.params must be a table of numbers")
+            kwargs[k] = dict(v)
+        elif isinstance(default, bool) or (default is not None and isinstance(default, str)):
+            if type(v) is not type(default):
+                raise ConfigError(f"{section}.{k} = {v!r} must be a {type(default).__name__}")
+            kwargs[k] = v
+        elif isinstance(default, int) or (default is None and k.endswith("frames")):
+            if v is not None and (not isinstance(v, int) or isinstance(v, bool)):
+                raise ConfigError(f"{section}.{k} = {v!r} must be a whole number")
+            kwargs[k] = v
+        elif isinstance(default, float):
+            if not isinstance(v, (int, float)) or isinstance(v, bool):
+                raise ConfigError(f"{section}.{k} = {v!r} must be a number")
+            kwargs[k] = float(v)
+        else:
+            kwargs[k] = v
+    return cls(**kwargs)
+
+
+def config_from_dict(data: Mapping[str, Any]) -> PipelineConfig:
+    """Build and validate a config from nested mappings (as parsed from TOML)."""
+    if not isinstance(data, Mapping):
+        raise ConfigError("a config must be a table of sections")
+    unknown = sorted(set(data) - set(_STAGES))
+    if unknown:
+        raise ConfigError(f"unknown config section [{unknown[0]}]; use one of {sorted(_STAGES)}")
+    stages = {name: _build(cls, name, data.get(name, {})) for name, cls in _STAGES.items()}
+    return PipelineConfig(**stages).validate()
+
+
+def config_to_dict(cfg: PipelineConfig) -> dict[str, dict[str, Any]]:
+    out: dict[str, dict[str, Any]] = {}
+    for name in _STAGES:
+        d = _asdict(getattr(cfg, name))
+        out[name] = {k: (dict(v) if isinstance(v, Mapping) else v) for k, v in d.items()
+                     if v is not None}
+    return out
+
+
+def load_config(path: str | Path) -> PipelineConfig:
+    """Read a TOML config file; a missing or malformed file raises ConfigError."""
+    p = Path(path)
+    try:
+        text = p.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise ConfigError(f"config file {p} does not exist; check the path") from None
+    except (OSError, UnicodeDecodeError) as e:
+        raise ConfigError(f"cannot read config file {p}: {e}; give a UTF-8 TOML file") from e
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as e:
+        raise ConfigError(f"config file {p} is not valid TOML ({e}); fix the syntax") from e
+    return config_from_dict(data)
+
+
+def _toml_value(v: Any) -> str:
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, (int, float)):
+        return repr(v)
+    if isinstance(v, str):
+        return '"' + v.replace("\\", "\\\\").replace('"', '\\"') + '"'
+    raise ConfigError(f"cannot write {v!r} to TOML")
+
+
+def dump_config(cfg: PipelineConfig) -> str:
+    """The config as TOML text (round-trips through :func:`load_config`)."""
+    lines: list[str] = []
+    for section, values in config_to_dict(cfg).items():
+        lines.append(f"[{section}]")
+        nested = {k: v for k, v in values.items() if isinstance(v, dict)}
+        for k, v in values.items():
+            if k not in nested:
+                lines.append(f"{k} = {_toml_value(v)}")
+        for k, v in nested.items():
+            lines.append(f"[{section}.{k}]")
+            lines.extend(f"{kk} = {_toml_value(vv)}" for kk, vv in v.items())
+        lines.append("")
+    return "\n".join(lines)

@@ -1,0 +1,127 @@
+"""The depth-source protocol: anything that yields :class:`~depthtouch.types.Frame` in order.
+
+A source knows its resolution, depth scale and (when available) intrinsics before the first
+frame, and is a context manager so that files and devices are closed on every path.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from types import TracebackType
+from typing import Protocol, runtime_checkable
+
+import numpy as np
+
+from ..errors import SourceError
+from ..types import Frame
+
+
+@runtime_checkable
+class DepthSource(Protocol):
+    """A stream of depth frames.
+
+    Attributes: ``depth_scale_m`` (metres per unit), ``K`` ((3, 3) or None), ``fps`` (nominal
+    frames per second, or None when unknown), ``resolution_wh``, ``name`` (for messages).
+    """
+
+    depth_scale_m: float
+    K: np.ndarray | None
+    fps: float | None
+    resolution_wh: tuple[int, int]
+    name: str
+
+    def frames(self) -> Iterator[Frame]: ...
+
+    def close(self) -> None: ...
+
+    def __enter__(self) -> DepthSource: ...
+
+    def __exit__(
+        self,
+        exc_type: type[BaseException] | None,
+        exc: BaseException | None,
+        tb: TracebackType | None,
+    ) -> None: ...
+
+
+class SourceBase:
+    """Shared plumbing: context management and a length when the source knows it."""
+
+    depth_scale_m: float = 0.001
+    K: np.ndarray | None = None
+    fps: float | None = None
+    resolution_wh: tuple[int, int] = (0, 0)
+    name: str = "source"
+
+    def frames(self) -> Iterator[Frame]:  # pragma: no cover - abstract
+        raise NotImplementedError
+
+    def close(self) -> None:
+        """Release files or devices; safe to call twice."""
+
+    def __enter__(self) -> SourceBase:
+        return self
+
+    def __exit__(
+        self,
+        exc_type: type[BaseException] | None,
+        exc: BaseException | None,
+        tb: TracebackType | None,
+    ) -> None:
+        self.close()
+
+    def __iter__(self) -> Iterator[Frame]:
+        return self.frames()
+
+
+def validate_depth_scale(value: object, where: str) -> float:
+    """A positive, finite depth scale in metres per unit, or SourceError."""
+    try:
+        scale = float(value)  # type: ignore[arg-type]
+    except (TypeError, ValueError):
+        raise SourceError(
+            f"{where}: depth_scale {value!r} is not a number; give metres per unit, e.g. 0.001"
+        ) from None
+    if not (np.isfinite(scale) and 1e-6 <= scale <= 1.0):
+        raise SourceError(
+            f"{where}: depth_scale {scale!r} is out of range; give metres per unit in "
+            "[1e-6, 1] (0.001 for millimetres)"
+        )
+    return scale
+
+
+def validate_K(value: object, where: str) -> np.ndarray | None:
+    """Intrinsics as a float64 (3, 3) with positive focal lengths, None when absent."""
+    if value is None:
+        return None
+    try:
+        K = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise SourceError(f"{where}: K is not numeric; give [[fx,0,cx],[0,fy,cy],[0,0,1]]") from None
+    if K.shape != (3, 3) or not np.all(np.isfinite(K)) or K[0, 0] <= 0 or K[1, 1] <= 0:
+        raise SourceError(
+            f"{where}: K must be a finite 3x3 matrix with positive fx, fy, got shape {K.shape}; "
+            "give [[fx,0,cx],[0,fy,cy],[0,0,1]]"
+        )
+    return K
+
+
+def validate_timestamps(ts: np.ndarray, n: int, where: str) -> np.ndarray:
+    """float64 (n,), finite and strictly increasing, or SourceError."""
+    try:
+        t = np.asarray(ts, dtype=np.float64).reshape(-1)
+    except (TypeError, ValueError):
+        raise SourceError(f"{where}: timestamps are not numbers; give seconds as floats") from None
+    if t.shape[0] != n:
+        raise SourceError(
+            f"{where}: {t.shape[0]} timestamps for {n} frames; give one timestamp per frame"
+        )
+    if not np.all(np.isfinite(t)):
+        raise SourceError(f"{where}: timestamps contain NaN or inf; give finite seconds")
+    if n > 1 and not np.all(np.diff(t) > 0):
+        i = int(np.argmin(np.diff(t) > 0))
+        raise SourceError(
+            f"{where}: timestamps are not strictly increasing (frame {i + 1}: {t[i + 1]} after "
+            f"{t[i]}); fix or drop the repeated frames"
+        )
+    return t

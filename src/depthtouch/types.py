@@ -1,0 +1,138 @@
+"""Shared value types that cross stage boundaries.
+
+Arrays are numpy; every container of per-item arrays is parallel (same first dimension) and has
+an ``empty()`` constructor. Nothing here mutates its inputs.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any, Literal
+
+import numpy as np
+
+TouchState = Literal["down", "move", "up"]
+
+
+def _check_shape(name: str, arr: np.ndarray, shape: tuple[int | None, ...]) -> None:
+    ok = arr.ndim == len(shape) and all(s is None or s == d for s, d in zip(shape, arr.shape))
+    if not ok:
+        want = "(" + ", ".join("_" if s is None else str(s) for s in shape) + ")"
+        raise ValueError(f"{name}: expected shape {want}, got {arr.shape}")
+
+
+@dataclass(frozen=True)
+class Frame:
+    """One depth frame with its time.
+
+    depth: uint16 (H, W), units of ``depth_scale_m`` metres along the optical axis; 0 = no data.
+    timestamp_s: seconds, from the recording or the device (never the wall clock of a stage).
+    index: 0-based frame number in the stream.
+    depth_scale_m: metres per depth unit (0.001 = millimetres).
+    K: pinhole intrinsics (3, 3) or None when unknown.
+    """
+
+    depth: np.ndarray
+    timestamp_s: float
+    index: int
+    depth_scale_m: float = 0.001
+    K: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        if self.depth.ndim != 2:
+            raise ValueError(f"Frame.depth: expected shape (H, W), got {self.depth.shape}")
+        if self.K is not None:
+            _check_shape("Frame.K", self.K, (3, 3))
+
+    @property
+    def resolution_wh(self) -> tuple[int, int]:
+        return int(self.depth.shape[1]), int(self.depth.shape[0])
+
+    def depth_mm(self) -> np.ndarray:
+        """Depth in millimetres as float32 (0 stays 0 = missing)."""
+        return self.depth.astype(np.float32) * np.float32(self.depth_scale_m * 1000.0)
+
+
+@dataclass(frozen=True)
+class TouchPoints:
+    """Touch points found in one frame (before tracking), parallel arrays of length N.
+
+    xy_px: (N, 2) float64 sub-pixel image coordinates (x = column, y = row).
+    height_mm: (N,) height of the touching pixel above the surface.
+    area_px: (N,) pixel count of the touch region.
+    hand_xy_px: (N, 2) centroid of the attached hand/arm part (NaN when none was seen).
+    """
+
+    xy_px: np.ndarray
+    height_mm: np.ndarray
+    area_px: np.ndarray
+    hand_xy_px: np.ndarray
+
+    def __post_init__(self) -> None:
+        n = self.xy_px.shape[0] if self.xy_px.ndim == 2 else -1
+        _check_shape("TouchPoints.xy_px", self.xy_px, (None, 2))
+        _check_shape("TouchPoints.height_mm", self.height_mm, (n,))
+        _check_shape("TouchPoints.area_px", self.area_px, (n,))
+        _check_shape("TouchPoints.hand_xy_px", self.hand_xy_px, (n, 2))
+
+    @classmethod
+    def empty(cls) -> TouchPoints:
+        return cls(np.zeros((0, 2)), np.zeros(0), np.zeros(0, np.int64), np.zeros((0, 2)))
+
+    def __len__(self) -> int:
+        return int(self.xy_px.shape[0])
+
+    def __getitem__(self, index: np.ndarray | slice) -> TouchPoints:
+        return TouchPoints(
+            self.xy_px[index], self.height_mm[index], self.area_px[index], self.hand_xy_px[index]
+        )
+
+
+@dataclass(frozen=True)
+class Touch:
+    """A tracked touch in one frame: id, state and the (filtered) position."""
+
+    id: int
+    state: TouchState
+    xy_px: tuple[float, float]
+    height_mm: float = 0.0
+    area_px: int = 0
+
+
+@dataclass(frozen=True)
+class TouchEvent:
+    """One line of the JSON Lines contract (docs/formats.md section 2).
+
+    ``extra`` holds optional fields (``sx``, ``sy``, ``X``, ``Y``, ``Z``, ``area``...), written after
+    the required ones.
+    """
+
+    frame: int
+    t: float
+    id: int
+    state: TouchState
+    x: float
+    y: float
+    extra: dict[str, Any] = field(default_factory=dict)
+
+    def to_dict(self) -> dict[str, Any]:
+        d: dict[str, Any] = {
+            "frame": self.frame,
+            "t": round(self.t, 6),
+            "id": self.id,
+            "state": self.state,
+            "x": round(self.x, 3),
+            "y": round(self.y, 3),
+        }
+        for k, v in self.extra.items():
+            d[k] = round(v, 3) if isinstance(v, float) else v
+        return d
+
+    @classmethod
+    def from_dict(cls, d: dict[str, Any]) -> TouchEvent:
+        required = ("frame", "t", "id", "state", "x", "y")
+        extra = {k: v for k, v in d.items() if k not in required}
+        return cls(
+            int(d["frame"]), float(d["t"]), int(d["id"]), d["state"], float(d["x"]),
+            float(d["y"]), extra,
+        )
