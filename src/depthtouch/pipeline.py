@@ -1,0 +1,236 @@
+"""The pipeline: the only place that wires the per-frame stages together.
+
+source frame -> surface (learned from the first frames) -> band masks -> regions -> touch points
+-> tracking -> path filter -> calibration -> :class:`TouchEvent` list.
+
+``Pipeline(config).process(frame)`` returns the events of that frame (none while the surface is
+being learned). Bad frames in a live stream (another size, wrong dtype) are skipped, counted and
+warned about once, never raised.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from dataclasses import dataclass, field
+from typing import Any, Protocol
+
+import numpy as np
+
+from .config import PipelineConfig
+from .errors import SurfaceError
+from .filters import TouchFilter, make_filter
+from .regions import BandBounds, band_bounds, band_masks, find_regions, height_mm
+from .surface import SurfaceLearner, SurfaceModel
+from .touchpoints import find_touch_points
+from .tracking import Tracker, TrackUpdate
+from .types import Frame, TouchEvent, TouchPoints
+
+log = logging.getLogger(__name__)
+
+
+class ScreenMapping(Protocol):
+    """What the pipeline needs of a calibration: depth px (N, 2) -> screen px (N, 2)."""
+
+    def to_screen(self, xy_px: np.ndarray) -> np.ndarray: ...
+
+
+@dataclass
+class PipelineStats:
+    """Counters of a run."""
+
+    frames: int = 0
+    learning_frames: int = 0
+    skipped_frames: int = 0
+    events: int = 0
+    skip_reasons: dict[str, int] = field(default_factory=dict)
+
+
+class Pipeline:
+    """Depth frames in, touch events out.
+
+    config: all stage settings (default :class:`PipelineConfig`).
+    surface: a saved surface model; when None it is learned from the first frames.
+    calibration: maps depth px to screen px; adds ``sx``, ``sy`` to events when given.
+    surface_frames: learn the surface from this many frames (overrides the config's seconds).
+    """
+
+    def __init__(
+        self,
+        config: PipelineConfig | None = None,
+        *,
+        surface: SurfaceModel | None = None,
+        calibration: ScreenMapping | None = None,
+        surface_frames: int | None = None,
+    ) -> None:
+        self.config = (config or PipelineConfig()).validate()
+        self.calibration = calibration
+        self._surface_frames = surface_frames
+        self.stats = PipelineStats()
+        self.last_timing_ms: dict[str, float] = {}
+        self.last_points: TouchPoints = TouchPoints.empty()
+        self._warned: set[str] = set()
+        self._learner = SurfaceLearner(self.config.surface, surface_frames)
+        self._filter: TouchFilter = make_filter(self.config.filter)
+        self._tracker = Tracker(self.config.tracking, self.config.touchpoints)
+        self.surface: SurfaceModel | None = None
+        self._bounds: BandBounds | None = None
+        self._last_frame: Frame | None = None
+        if surface is not None:
+            self.set_surface(surface)
+
+    # --- state -----------------------------------------------------------------------------
+    @property
+    def learning(self) -> bool:
+        return self.surface is None
+
+    @property
+    def learn_progress(self) -> float:
+        return 1.0 if self.surface is not None else self._learner.progress
+
+    @property
+    def active_ids(self) -> list[int]:
+        return [t.id for t in self._tracker.tracks if t.active]
+
+    def set_surface(self, surface: SurfaceModel) -> None:
+        """Use this surface from the next frame on (active touches continue)."""
+        if self.config.surface.statistic != surface.statistic:
+            surface = surface.with_statistic(self.config.surface.statistic)
+        self.surface = surface
+        self._bounds = band_bounds(surface, self.config.regions, self.config.touchpoints.tip_radius_mm)
+        self._tracker.scale_mm_per_px = surface.mm_per_px() if surface.K is not None else None
+
+    def reset(self) -> None:
+        """Forget the surface and all touches (ids keep increasing)."""
+        self.surface = None
+        self._bounds = None
+        self._learner.reset()
+        self._tracker.reset()
+        self._filter.reset()
+
+    # --- per frame -------------------------------------------------------------------------
+    def process(self, frame: Frame) -> list[TouchEvent]:
+        """The touch events of one frame (see the module doc)."""
+        self.stats.frames += 1
+        if self.surface is None:
+            self.stats.learning_frames += 1
+            if not self._frame_ok(frame, None):
+                return []
+            try:
+                model = self._learner.update(frame)
+            except SurfaceError as e:
+                self._skip("learning", str(e))
+                self._learner.reset()
+                return []
+            if model is not None:
+                self.set_surface(model)
+            self._last_frame = frame
+            return []
+        if not self._frame_ok(frame, self.surface):
+            return []
+        b = self._bounds
+        assert b is not None
+        t0 = time.perf_counter()
+        band, high = band_masks(frame.depth, b)
+        regions = find_regions(band, b)
+        t1 = time.perf_counter()
+        points = find_touch_points(frame.depth, high, regions, b, self.config.touchpoints)
+        t2 = time.perf_counter()
+        updates = self._tracker.update(points)
+        t3 = time.perf_counter()
+        events = self._events(frame, updates)
+        t4 = time.perf_counter()
+        self.last_points = points
+        self.last_timing_ms = {
+            "regions": (t1 - t0) * 1e3, "touchpoints": (t2 - t1) * 1e3,
+            "tracking": (t3 - t2) * 1e3, "filter_events": (t4 - t3) * 1e3,
+            "total": (t4 - t0) * 1e3,
+        }
+        self._last_frame = frame
+        self.stats.events += len(events)
+        return events
+
+    def finish(self) -> list[TouchEvent]:
+        """End the active touches at the end of a stream (``up`` on the last frame)."""
+        if self._last_frame is None:
+            return []
+        events = self._events(self._last_frame, self._tracker.end_all())
+        self.stats.events += len(events)
+        return events
+
+    def height_map_mm(self, frame: Frame) -> np.ndarray:
+        """Height above the surface in mm, float32 (H, W), NaN where unknown (for views)."""
+        if self._bounds is None or frame.depth.shape != self._bounds.valid.shape:
+            return np.full(frame.depth.shape, np.nan, np.float32)
+        return height_mm(frame.depth, self._bounds)
+
+    # --- helpers ---------------------------------------------------------------------------
+    def _events(self, frame: Frame, updates: list[TrackUpdate]) -> list[TouchEvent]:
+        if not updates:
+            return []
+        scale = self._tracker.scale_mm_per_px or 1.0
+        measured = [u for u in updates if u.measured]
+        filtered: dict[int, np.ndarray] = {}
+        if measured:
+            ids = np.array([u.track.id for u in measured], np.int64)
+            xy = np.array([u.track.xy_px for u in measured], np.float64) * scale
+            out = self._filter.update(ids, xy, frame.timestamp_s) / scale
+            filtered = {int(i): out[k] for k, i in enumerate(ids)}
+        ended = np.array([u.track.id for u in updates if u.state == "up"], np.int64)
+        if ended.size:
+            self._filter.drop(ended)
+        events: list[TouchEvent] = []
+        for u in updates:
+            t = u.track
+            xy = filtered.get(t.id)
+            if xy is None:
+                xy = getattr(t, "last_out", t.xy_px)
+            t.last_out = xy  # type: ignore[attr-defined]
+            extra: dict[str, Any] = {"area": t.area_px}
+            if np.isfinite(t.height_mm):
+                extra["h"] = round(float(t.height_mm), 2)
+            events.append(TouchEvent(frame.index, frame.timestamp_s, t.id, u.state,
+                                     float(xy[0]), float(xy[1]), extra))
+        self._add_coordinates(events)
+        return events
+
+    def _add_coordinates(self, events: list[TouchEvent]) -> None:
+        surf = self.surface
+        if not events or surf is None:
+            return
+        xy = np.array([[e.x, e.y] for e in events], np.float64)
+        if surf.K is not None:
+            K = surf.K
+            h, w = surf.depth_mm.shape
+            ix = np.clip(np.rint(xy[:, 0]).astype(int), 0, w - 1)
+            iy = np.clip(np.rint(xy[:, 1]).astype(int), 0, h - 1)
+            z = surf.depth_mm[iy, ix].astype(np.float64)
+            X = (xy[:, 0] - K[0, 2]) * z / K[0, 0]
+            Y = (xy[:, 1] - K[1, 2]) * z / K[1, 1]
+            for e, a, b, c in zip(events, X, Y, z):
+                if c > 0:
+                    e.extra.update(X=round(float(a), 2), Y=round(float(b), 2), Z=round(float(c), 2))
+        if self.calibration is not None:
+            sxy = self.calibration.to_screen(xy)
+            for e, (sx, sy) in zip(events, sxy):
+                e.extra.update(sx=round(float(sx), 2), sy=round(float(sy), 2))
+
+    def _frame_ok(self, frame: Frame, surface: SurfaceModel | None) -> bool:
+        d = frame.depth
+        if d.dtype != np.uint16:
+            return self._skip("dtype", f"frame {frame.index} has dtype {d.dtype}, expected uint16")
+        if surface is not None and d.shape != surface.depth_mm.shape:
+            return self._skip(
+                "size",
+                f"frame {frame.index} is {d.shape[1]}x{d.shape[0]}, the surface "
+                f"{surface.depth_mm.shape[1]}x{surface.depth_mm.shape[0]}",
+            )
+        return True
+
+    def _skip(self, reason: str, message: str) -> bool:
+        self.stats.skipped_frames += 1
+        self.stats.skip_reasons[reason] = self.stats.skip_reasons.get(reason, 0) + 1
+        if reason not in self._warned:
+            self._warned.add(reason)
+            log.warning("skipping bad frames (%s): %s; further ones are counted", reason, message)
+        return False

@@ -1,0 +1,166 @@
+"""Touch regions: the band Tl < height < Tu, labelled, size-filtered, attached to a hand.
+
+The per-pixel thresholds are turned once (per surface) into depth bounds in the camera's own
+units, so that the per-frame work is two ``cv2.inRange`` calls on the raw uint16 frame, one small
+opening and one labelling, and nothing at all when the band is empty.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+from .config import RegionConfig
+from .surface import SurfaceModel, height_factor
+
+
+@dataclass(frozen=True)
+class BandBounds:
+    """Per-pixel depth bounds (camera units, uint16 (H, W)) derived from a surface.
+
+    band_lo..band_hi: depth of a pixel in the touch band (surface - Tu < d < surface - Tl).
+    high_lo..high_hi: depth of hand/arm pixels (higher than Tu, lower than hand_max_mm).
+    factor: height per depth difference (see :func:`surface.height_factor`).
+    tl_mm: Tl per pixel (float32), surface_units: surface depth in camera units (float32).
+    min_area_px: S_min in pixels; open_px: opening size actually used.
+    """
+
+    band_lo: np.ndarray
+    band_hi: np.ndarray
+    high_lo: np.ndarray
+    high_hi: np.ndarray
+    factor: np.ndarray
+    tl_mm: np.ndarray
+    surface_mm: np.ndarray
+    sigma_mm: np.ndarray
+    valid: np.ndarray
+    to_mm: float
+    mm_per_px: float
+    min_area_px: int
+    open_px: int
+    tu_mm: float
+
+
+def band_bounds(surface: SurfaceModel, config: RegionConfig, tip_radius_mm: float = 7.0) -> BandBounds:
+    """Precompute the per-pixel bounds for :func:`band_masks` (once per surface; pure)."""
+    cfg = config
+    to_mm = surface.depth_scale_m * 1000.0
+    f = height_factor(surface)
+    tl = np.maximum(np.float32(cfg.tl_floor_mm), np.float32(cfg.noise_k) * surface.sigma_mm)
+    # Tl can never reach Tu: a camera this noisy leaves an empty band (reported, not hidden).
+    tl = np.minimum(tl, np.float32(cfg.tu_mm)).astype(np.float32)
+    s_units = surface.depth_mm / np.float32(to_mm)
+    # height h = (s - d) * to_mm * f  <=>  d = s - h / (to_mm * f)
+    per_mm = 1.0 / (np.float32(to_mm) * f)
+    band_lo = np.ceil(s_units - np.float32(cfg.tu_mm) * per_mm + 1e-3)
+    band_hi = np.floor(s_units - tl * per_mm - 1e-3)
+    high_hi = band_lo - 1
+    high_lo = np.ceil(s_units - np.float32(cfg.hand_max_mm) * per_mm)
+    ok = surface.valid
+    u16 = np.iinfo(np.uint16).max
+
+    def clip(a: np.ndarray, empty: int) -> np.ndarray:
+        return np.where(ok, np.clip(a, 1, u16), empty).astype(np.uint16)
+
+    mm_px = surface.mm_per_px()
+    min_area = max(cfg.min_area_floor_px, int(round(cfg.min_area_mm2 / (mm_px * mm_px))))
+    # an opening wider than a finger would erase it: keep it only where fingers span >= 4 px
+    finger_px = 2.0 * tip_radius_mm / mm_px
+    open_px = cfg.open_px if finger_px >= cfg.open_px + 1 else 1
+    return BandBounds(
+        band_lo=clip(band_lo, 1), band_hi=clip(band_hi, 0),
+        high_lo=clip(high_lo, 1), high_hi=clip(high_hi, 0),
+        factor=f, tl_mm=tl, surface_mm=surface.depth_mm, sigma_mm=surface.sigma_mm,
+        valid=surface.valid, to_mm=to_mm, mm_per_px=mm_px, min_area_px=min_area,
+        open_px=open_px, tu_mm=cfg.tu_mm,
+    )
+
+
+def band_masks(depth: np.ndarray, bounds: BandBounds) -> tuple[np.ndarray, np.ndarray]:
+    """(band, high) uint8 masks (255 = in) of a raw depth frame; zeros are in neither."""
+    band = cv2.inRange(depth, bounds.band_lo, bounds.band_hi)
+    high = cv2.inRange(depth, bounds.high_lo, bounds.high_hi)
+    return band, high
+
+
+@dataclass(frozen=True)
+class Regions:
+    """Touch regions of one frame (parallel over the kept regions).
+
+    bbox_xywh: (R, 4) int bounding boxes in the image; area_px: (R,) pixel counts;
+    masks: per region a uint8 mask (1 = in) of its bounding box.
+    """
+
+    bbox_xywh: np.ndarray
+    area_px: np.ndarray
+    masks: tuple[np.ndarray, ...]
+
+    @classmethod
+    def empty(cls) -> Regions:
+        return cls(np.zeros((0, 4), np.int64), np.zeros(0, np.int64), ())
+
+    def __len__(self) -> int:
+        return int(self.bbox_xywh.shape[0])
+
+
+_KERNELS: dict[int, np.ndarray] = {}
+
+
+def _kernel(size: int) -> np.ndarray:
+    k = _KERNELS.get(size)
+    if k is None:
+        k = _KERNELS[size] = cv2.getStructuringElement(cv2.MORPH_RECT, (size, size))
+    return k
+
+
+def find_regions(band: np.ndarray, bounds: BandBounds) -> Regions:
+    """Open the band mask, find its connected regions and keep those of at least S_min pixels.
+
+    Regions are the outer contours of the opened mask (``cv2.findContours`` costs a tenth of a
+    full labelling); each region's mask is its filled contour within its bounding box, so a hole
+    inside a region counts as region.
+    """
+    mask = band
+    if bounds.open_px > 1:
+        mask = cv2.morphologyEx(band, cv2.MORPH_OPEN, _kernel(bounds.open_px))
+    if cv2.countNonZero(mask) < bounds.min_area_px:
+        return Regions.empty()
+    contours, _ = cv2.findContours(mask, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
+    boxes: list[tuple[int, int, int, int]] = []
+    areas: list[int] = []
+    masks: list[np.ndarray] = []
+    for c in contours:
+        x, y, w, h = cv2.boundingRect(c)
+        if w * h < bounds.min_area_px:
+            continue
+        m = np.zeros((h, w), np.uint8)
+        cv2.drawContours(m, [c], -1, 1, thickness=cv2.FILLED, offset=(-x, -y))
+        area = cv2.countNonZero(m)
+        if area < bounds.min_area_px:
+            continue
+        boxes.append((x, y, w, h))
+        areas.append(area)
+        masks.append(m)
+    if not boxes:
+        return Regions.empty()
+    return Regions(np.asarray(boxes, np.int64), np.asarray(areas, np.int64), tuple(masks))
+
+
+def height_mm(depth: np.ndarray, bounds: BandBounds, roi: tuple[int, int, int, int] | None = None) -> np.ndarray:
+    """Height above the surface in mm (float32), NaN where depth or surface is missing.
+
+    With ``roi`` = (x, y, w, h), only that window is computed (the per-region path).
+    """
+    if roi is None:
+        ys, xs = slice(None), slice(None)
+    else:
+        x, y, w, h = roi
+        ys, xs = slice(y, y + h), slice(x, x + w)
+    d = depth[ys, xs]
+    h_mm = (bounds.surface_mm[ys, xs] - d.astype(np.float32) * np.float32(bounds.to_mm)) \
+        * bounds.factor[ys, xs]
+    bad = (d == 0) | ~bounds.valid[ys, xs]
+    h_mm[bad] = np.nan
+    return h_mm

@@ -1,0 +1,184 @@
+"""Touch points: inside each touch region, the point where the fingertip touches the surface.
+
+Two estimators, selectable by ``TouchPointConfig.method``:
+
+- ``extremity`` (default): the region is attached to the hand (pixels above Tu next to it); the
+  direction from that attachment to the region points along the finger to its tip. The region is
+  grown into neighbouring pixels that pass a lower threshold on a 3x3-smoothed height map (the
+  tip cap that Tl cut away), the front edge of the tip is found along the finger direction, the
+  finger's width behind the tip gives its radius r, and the contact point is r behind the front
+  edge (the centre of the rounded tip, under which it rests on the surface). Sub-pixel.
+- ``paper`` (Lee & Kwon 2019): a search band of Ds pixels inside the bounding-box edge away from
+  the hand; candidates are pixels within Tt of the surface; a candidate counts when its 3x3
+  neighbourhood matches one of the block patterns; the touch point is the centre of the block
+  farthest toward the tip. Integer pixels.
+
+Regions not attached to a hand (a flat object, noise) give no touch point. Per region the work
+is done on a small window around it; there is no loop over pixels.
+"""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+
+from .config import TouchPointConfig
+from .regions import BandBounds, Regions
+from .types import TouchPoints
+
+_K3 = np.ones((3, 3), np.uint8)
+# The paper's 3x3 block patterns: the full block and the four half blocks (a 2x3 or 3x2 side).
+_PATTERNS = [
+    np.ones((3, 3), np.uint8),
+    np.array([[1, 1, 1], [1, 1, 1], [0, 0, 0]], np.uint8),
+    np.array([[0, 0, 0], [1, 1, 1], [1, 1, 1]], np.uint8),
+    np.array([[1, 1, 0], [1, 1, 0], [1, 1, 0]], np.uint8),
+    np.array([[0, 1, 1], [0, 1, 1], [0, 1, 1]], np.uint8),
+]
+
+
+def _smooth_heights(depth: np.ndarray, bounds: BandBounds, roi: tuple[int, int, int, int]) -> np.ndarray:
+    """Height in mm over ``roi``, 3x3 mean of the known pixels; NaN where fewer than 3 of 9 are."""
+    x, y, w, h = roi
+    d = depth[y:y + h, x:x + w]
+    ok = ((d > 0) & bounds.valid[y:y + h, x:x + w]).astype(np.float32)
+    hm = (bounds.surface_mm[y:y + h, x:x + w] - d * np.float32(bounds.to_mm)) \
+        * bounds.factor[y:y + h, x:x + w]
+    num = cv2.blur(hm * ok, (3, 3))
+    den = cv2.blur(ok, (3, 3))
+    out = num / np.maximum(den, np.float32(1e-6))
+    out[den < 0.3] = np.nan
+    return out
+
+
+def _centroid(mask: np.ndarray) -> tuple[float, float, float]:
+    """(count, x, y) of a binary uint8 mask in one pass."""
+    m = cv2.moments(mask, binaryImage=True)
+    n = m["m00"]
+    if n <= 0:
+        return 0.0, 0.0, 0.0
+    return n, m["m10"] / n, m["m01"] / n
+
+
+def find_touch_points(
+    depth: np.ndarray,
+    high: np.ndarray,
+    regions: Regions,
+    bounds: BandBounds,
+    config: TouchPointConfig,
+) -> TouchPoints:
+    """Touch points of the regions of one frame (pure; see the module doc)."""
+    if len(regions) == 0:
+        return TouchPoints.empty()
+    H, W = depth.shape
+    r0 = config.tip_radius_mm / bounds.mm_per_px
+    margin = int(np.ceil(2.5 * r0)) + 3
+    k_attach = cv2.getStructuringElement(cv2.MORPH_RECT, (5, 5))
+    rr = max(1, int(round(r0)))
+    k_reach = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * rr + 1, 2 * rr + 1))
+    xy_out: list[tuple[float, float]] = []
+    h_out: list[float] = []
+    a_out: list[int] = []
+    hand_out: list[tuple[float, float]] = []
+    for mask, (bx, by, bw, bh), area in zip(regions.masks, regions.bbox_xywh, regions.area_px):
+        x0, y0 = max(0, int(bx) - margin), max(0, int(by) - margin)
+        x1, y1 = min(W, int(bx + bw) + margin), min(H, int(by + bh) + margin)
+        reg = np.zeros((y1 - y0, x1 - x0), np.uint8)
+        reg[by - y0:by - y0 + bh, bx - x0:bx - x0 + bw] = mask
+        attach = cv2.dilate(reg, k_attach) & high[y0:y1, x0:x1]
+        n_att, hx, hy = _centroid(attach)
+        if n_att < 2:
+            continue  # not attached to a hand: a flat object or noise
+        hand = np.array([hx, hy])
+        hs = _smooth_heights(depth, bounds, (x0, y0, x1 - x0, y1 - y0))
+        if config.method == "paper":
+            pt = _paper_point(reg, hs, hand, config)
+        else:
+            pt = _extremity_point(reg, hs, hand, r0, bounds.tl_mm[y0:y1, x0:x1], bounds.tu_mm,
+                                  k_reach)
+        if pt is None:
+            continue
+        xy_out.append((pt[0] + x0, pt[1] + y0))
+        h_out.append(pt[2])
+        a_out.append(int(area))
+        hand_out.append((hx + x0, hy + y0))
+    if not xy_out:
+        return TouchPoints.empty()
+    return TouchPoints(
+        np.asarray(xy_out, np.float64), np.asarray(h_out, np.float64),
+        np.asarray(a_out, np.int64), np.asarray(hand_out, np.float64),
+    )
+
+
+def _extremity_point(
+    reg: np.ndarray,
+    hs: np.ndarray,
+    hand: np.ndarray,
+    r0: float,
+    tl_mm: np.ndarray,
+    tu_mm: float,
+    k_reach: np.ndarray,
+) -> tuple[float, float, float] | None:
+    # grow into the tip cap: a lower threshold on the smoothed map (noise averaged over 9 px)
+    grow = (hs > np.maximum(tl_mm * np.float32(1 / 3), np.float32(2.0))) & (hs < tu_mm)
+    finger = reg | (grow.view(np.uint8) & cv2.dilate(reg, k_reach))
+    _, cx, cy = _centroid(reg)
+    dx, dy = cx - hand[0], cy - hand[1]
+    norm = float(np.hypot(dx, dy))
+    if norm < 1e-6:
+        return None
+    dx, dy = dx / norm, dy / norm
+    pts = cv2.findNonZero(finger).reshape(-1, 2).astype(np.float64)
+    px = pts[:, 0] - hand[0]
+    py = pts[:, 1] - hand[1]
+    s = px * dx + py * dy
+    lat = py * dx - px * dy
+    s_front = float(s.max()) + 0.5
+    # finger width in a slab behind the tip cap -> radius (hands differ)
+    n_slab = np.count_nonzero((s > s_front - 3.0 * r0) & (s <= s_front - r0))
+    r = float(np.clip(n_slab / (4.0 * r0), 0.6 * r0, 1.5 * r0))
+    cap = s > s_front - 2.0 * r
+    s_c = s_front - r
+    l_c = float(lat[cap].mean())
+    x = hand[0] + s_c * dx - l_c * dy
+    y = hand[1] + s_c * dy + l_c * dx
+    cap_h = hs[pts[cap, 1].astype(np.intp), pts[cap, 0].astype(np.intp)]
+    cap_h = cap_h[cap_h == cap_h]
+    if cap_h.size == 0:
+        return float(x), float(y), float("nan")
+    k = cap_h.size // 4
+    return float(x), float(y), float(np.partition(cap_h, k)[k])
+
+
+def _paper_point(
+    reg: np.ndarray, hs: np.ndarray, hand: np.ndarray, config: TouchPointConfig
+) -> tuple[float, float, float] | None:
+    ry, rx = np.nonzero(reg)
+    c = np.array([rx.mean(), ry.mean()])
+    d = c - hand
+    bx0, bx1, by0, by1 = rx.min(), rx.max(), ry.min(), ry.max()
+    ds = config.paper_ds_px
+    search = np.zeros_like(reg)
+    # the bounding-box edge away from the hand
+    if abs(d[0]) >= abs(d[1]):
+        if d[0] >= 0:
+            search[by0:by1 + 1, max(bx1 - ds + 1, bx0):bx1 + 1] = 1
+        else:
+            search[by0:by1 + 1, bx0:min(bx0 + ds, bx1 + 1)] = 1
+    else:
+        if d[1] >= 0:
+            search[max(by1 - ds + 1, by0):by1 + 1, bx0:bx1 + 1] = 1
+        else:
+            search[by0:min(by0 + ds, by1 + 1), bx0:bx1 + 1] = 1
+    cand = ((reg > 0) & (np.nan_to_num(hs, nan=np.inf) < config.paper_tt_mm)).astype(np.uint8)
+    confirmed = np.zeros_like(cand)
+    for pat in _PATTERNS:
+        confirmed |= cv2.erode(cand, pat, borderType=cv2.BORDER_CONSTANT, borderValue=0)
+    confirmed &= search
+    ys, xs = np.nonzero(confirmed)
+    if ys.size == 0:
+        return None
+    dn = d / max(float(np.hypot(d[0], d[1])), 1e-9)
+    s = (xs - hand[0]) * dn[0] + (ys - hand[1]) * dn[1]
+    i = int(np.argmax(s))
+    return float(xs[i]), float(ys[i]), float(hs[ys[i], xs[i]])
