@@ -110,7 +110,8 @@ class TouchPointConfig:
     touch_on_mm: a region's tip must come this close to the surface to go down (default 14).
     touch_off_mm: a touching tip is lifted above this height (hysteresis; default 18).
     paper_ds_px: Ds of the paper's method (default 6).
-    paper_tt_mm: Tt of the paper's method (default 12.0).
+    paper_tt_mm: Tt of the paper's method (default 18.0: a fingertip's top seen from above is about
+        its diameter, 12-20 mm, above the surface).
     """
 
     method: str = "extremity"
@@ -118,7 +119,7 @@ class TouchPointConfig:
     touch_on_mm: float = 14.0
     touch_off_mm: float = 18.0
     paper_ds_px: int = 6
-    paper_tt_mm: float = 12.0
+    paper_tt_mm: float = 18.0
 
     def validate(self) -> None:
         if self.method not in ("extremity", "paper"):

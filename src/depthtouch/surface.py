@@ -184,8 +184,8 @@ def learn_surface(
     s = np.sort(depth, axis=0)
     mode = _mode_along_axis0(s).astype(np.float32) * to_mm
     # median of the valid samples: zeros sort first, so the valid ones start at n - count
-    lo = (n - count) + (count - 1) // 2
-    hi = (n - count) + count // 2
+    lo = np.minimum((n - count) + np.maximum(count - 1, 0) // 2, n - 1)
+    hi = np.minimum((n - count) + count // 2, n - 1)
     med = 0.5 * (np.take_along_axis(s, lo[None], 0)[0].astype(np.float32)
                  + np.take_along_axis(s, hi[None], 0)[0].astype(np.float32)) * to_mm
     valid = (count >= max(2, int(np.ceil(cfg.min_valid_fraction * n)))) & (mean > 0)

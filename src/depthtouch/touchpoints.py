@@ -72,10 +72,10 @@ def find_touch_points(
         return TouchPoints.empty()
     H, W = depth.shape
     r0 = config.tip_radius_mm / bounds.mm_per_px
-    margin = int(np.ceil(2.5 * r0)) + 3
+    margin = int(np.ceil(3.0 * r0)) + 3
     k_attach = cv2.getStructuringElement(cv2.MORPH_RECT, (5, 5))
     rr = max(1, int(round(r0)))
-    k_reach = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * rr + 1, 2 * rr + 1))
+    k_reach = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (4 * rr + 1, 4 * rr + 1))
     xy_out: list[tuple[float, float]] = []
     h_out: list[float] = []
     a_out: list[int] = []
@@ -94,8 +94,7 @@ def find_touch_points(
         if config.method == "paper":
             pt = _paper_point(reg, hs, hand, config)
         else:
-            pt = _extremity_point(reg, hs, hand, r0, bounds.tl_mm[y0:y1, x0:x1], bounds.tu_mm,
-                                  k_reach)
+            pt = _extremity_point(reg, hs, hand, r0, bounds.tl_mm[y0:y1, x0:x1], k_reach)
         if pt is None:
             continue
         xy_out.append((pt[0] + x0, pt[1] + y0))
@@ -116,12 +115,13 @@ def _extremity_point(
     hand: np.ndarray,
     r0: float,
     tl_mm: np.ndarray,
-    tu_mm: float,
     k_reach: np.ndarray,
 ) -> tuple[float, float, float] | None:
-    # grow into the tip cap: a lower threshold on the smoothed map (noise averaged over 9 px)
-    grow = (hs > np.maximum(tl_mm * np.float32(1 / 3), np.float32(2.0))) & (hs < tu_mm)
-    finger = reg | (grow.view(np.uint8) & cv2.dilate(reg, k_reach))
+    # The finger's shape near the tip: the region grown into raised pixels nearby on the
+    # smoothed map (noise averaged over 9 px): the tip cap that Tl cut away, and the finger body
+    # that rises above Tu behind a steep tip.
+    raised = hs > np.maximum(tl_mm * np.float32(1 / 3), np.float32(2.0))
+    finger = reg | (raised.view(np.uint8) & cv2.dilate(reg, k_reach))
     _, cx, cy = _centroid(reg)
     dx, dy = cx - hand[0], cy - hand[1]
     norm = float(np.hypot(dx, dy))

@@ -34,6 +34,11 @@ class Track:
     seen: int = 1
     missing: int = 0
     active: bool = False
+    vel: np.ndarray = field(default_factory=lambda: np.zeros(2))
+
+    def predicted(self) -> np.ndarray:
+        """Where the contact should be this frame (constant velocity per frame)."""
+        return self.pos + self.vel * (1 + self.missing)
 
 
 @dataclass(frozen=True)
@@ -77,7 +82,7 @@ class Tracker:
         n_t, n_p = len(self.tracks), len(points)
         matched_t: dict[int, int] = {}
         if n_t and n_p:
-            tpos = np.array([t.pos for t in self.tracks])
+            tpos = np.array([t.predicted() for t in self.tracks])
             cost = np.linalg.norm(tpos[:, None, :] - pos[None, :, :], axis=2)
             allowed = np.where(
                 np.array([t.active for t in self.tracks])[:, None], ok_cont[None, :], ok_new[None, :]
@@ -93,6 +98,9 @@ class Tracker:
         for i, t in enumerate(self.tracks):
             j = matched_t.get(i)
             if j is not None:
+                step = (pos[j] - t.pos) / (1 + t.missing)
+                # smoothed velocity: a noisy touch point must not throw the prediction off
+                t.vel = step if t.seen == 1 else 0.5 * t.vel + 0.5 * step
                 t.xy_px, t.pos = points.xy_px[j].copy(), pos[j].copy()
                 t.height_mm, t.area_px = float(h[j]), int(points.area_px[j])
                 t.seen += 1

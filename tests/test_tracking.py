@@ -1,0 +1,93 @@
+import numpy as np
+import pytest
+
+from depthtouch.config import TouchPointConfig, TrackingConfig
+from depthtouch.tracking import Tracker
+from depthtouch.types import TouchPoints
+
+
+def pts(*xyh: tuple[float, float, float]) -> TouchPoints:
+    if not xyh:
+        return TouchPoints.empty()
+    a = np.array(xyh, np.float64)
+    return TouchPoints(a[:, :2], a[:, 2], np.full(len(a), 50), np.full((len(a), 2), np.nan))
+
+
+def run(tracker: Tracker, frames: list[TouchPoints]) -> list[list[tuple[int, str]]]:
+    return [[(u.track.id, u.state) for u in tracker.update(f)] for f in frames]
+
+
+def test_down_after_m_frames_up_after_grace():
+    tr = Tracker(TrackingConfig(down_frames=2, up_frames=2), scale_mm_per_px=1.0)
+    out = run(tr, [pts((10, 10, 5)), pts((11, 10, 5)), pts((12, 10, 5)), pts(), pts(), pts()])
+    assert out == [[], [(1, "down")], [(1, "move")], [(1, "move")], [(1, "up")], []]
+
+
+def test_single_frame_blip_never_goes_down():
+    tr = Tracker(TrackingConfig(down_frames=2), scale_mm_per_px=1.0)
+    assert run(tr, [pts((10, 10, 5)), pts(), pts((200, 10, 5)), pts()]) == [[], [], [], []]
+
+
+def test_grace_bridges_a_missing_frame_with_same_id():
+    tr = Tracker(TrackingConfig(down_frames=1, up_frames=3), scale_mm_per_px=1.0)
+    out = run(tr, [pts((10, 10, 5)), pts(), pts((12, 10, 5))])
+    assert out == [[(1, "down")], [(1, "move")], [(1, "move")]]
+
+
+def test_ids_follow_crossing_paths_and_are_never_reused():
+    tr = Tracker(TrackingConfig(down_frames=1, up_frames=1, gate_mm=30), scale_mm_per_px=1.0)
+    ids_a, ids_b = [], []
+    for i in range(20):
+        a, b = (100 + 5 * i, 100.0, 5.0), (200 - 5 * i, 108.0, 5.0)
+        ups = tr.update(pts(a, b))
+        by_y = {round(u.track.xy_px[1]): u.track.id for u in ups}
+        ids_a.append(by_y[100])
+        ids_b.append(by_y[108])
+    assert len(set(ids_a)) == 1 and len(set(ids_b)) == 1 and ids_a[0] != ids_b[0]
+    tr.update(pts())
+    new = tr.update(pts((50, 50, 5)))
+    assert new[0].track.id == 3
+
+
+def test_fast_drag_keeps_its_id_with_prediction():
+    # 35 px per frame at 1 mm/px: beyond a 30 mm gate without the velocity prediction
+    tr = Tracker(TrackingConfig(down_frames=1, up_frames=1, gate_mm=30), scale_mm_per_px=1.0)
+    ids = set()
+    for i in range(10):
+        x = 100 + 20 * i if i < 2 else 120 + 35 * (i - 1)
+        ids.update(u.track.id for u in tr.update(pts((x, 50, 5))))
+    assert ids == {1}
+
+
+def test_jump_beyond_gate_is_a_new_touch():
+    tr = Tracker(TrackingConfig(down_frames=1, up_frames=1, gate_mm=40), scale_mm_per_px=2.0)
+    run(tr, [pts((10, 10, 5))])
+    out = run(tr, [pts((40, 10, 5))])  # 30 px = 60 mm
+    assert sorted(out[0]) == [(1, "up"), (2, "down")]
+
+
+@pytest.mark.parametrize(
+    "heights, expected_active",
+    [
+        ([10, 10, 16, 16, 16], [False, True, True, True, True]),  # on at <=14, stays below 18
+        ([16, 16, 16], [False, False, False]),  # never came close enough to go down
+        ([10, 10, 25, 25, 25], [False, True, False, False, False]),  # lifted above 18
+    ],
+)
+def test_height_hysteresis(heights, expected_active):
+    tr = Tracker(TrackingConfig(down_frames=2, up_frames=2),
+                 TouchPointConfig(touch_on_mm=14, touch_off_mm=18), scale_mm_per_px=1.0)
+    active = []
+    for h in heights:
+        ups = tr.update(pts((50, 50, h)))
+        active.append(any(u.state in ("down", "move") and u.measured for u in ups))
+    assert active == expected_active
+
+
+def test_end_all_and_reset():
+    tr = Tracker(TrackingConfig(down_frames=1), scale_mm_per_px=1.0)
+    tr.update(pts((1, 1, 5), (50, 50, 5)))
+    ended = tr.end_all()
+    assert sorted(u.track.id for u in ended) == [1, 2] and all(u.state == "up" for u in ended)
+    tr.reset()
+    assert tr.update(pts((1, 1, 5)))[0].track.id == 3
