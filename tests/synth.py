@@ -27,6 +27,7 @@ class Finger:
     radius_mm: float = 7.5
     pitch_deg: float = 35.0
     length_mm: float = 70.0
+    arm: bool = True  # an arm from the hand out of the view (people enter from outside)
 
 
 def render_heights(shape: tuple[int, int], fingers: list[Finger], mm_per_px: float) -> np.ndarray:
@@ -54,6 +55,9 @@ def render_heights(shape: tuple[int, int], fingers: list[Finger], mm_per_px: flo
         hand = (t > horiz) & (t < horiz + 80) & (np.abs(lat) < 45)
         hand_h = r + f.gap_mm + horiz * np.tan(pitch) + 20
         hh = np.where(hand, np.maximum(hh, hand_h), hh)
+        if f.arm:
+            arm = (t >= horiz + 80) & (np.abs(lat) < 35)
+            hh = np.where(arm, np.maximum(hh, hand_h + 40 + (t - horiz - 80) * 0.3), hh)
         out = np.maximum(out, hh.astype(np.float32))
     return out
 

@@ -108,8 +108,11 @@ def test_events_follow_the_contract(recording, tmp_path):
 def test_saved_surface_gives_same_events(recording, tmp_path):
     path, _ = recording
     a, b, s = tmp_path / "a.jsonl", tmp_path / "b.jsonl", tmp_path / "surface.npz"
-    assert main(["replay", str(path), "--events", str(a), "--save-surface", str(s), "-q"]) == 0
-    assert main(["replay", str(path), "--events", str(b), "--surface", str(s), "-q"]) == 0
+    cfg = tmp_path / "static.toml"
+    cfg.write_text("[adapt]\nenabled = false\n")
+    common = ["--config", str(cfg), "-q"]
+    assert main(["replay", str(path), "--events", str(a), "--save-surface", str(s), *common]) == 0
+    assert main(["replay", str(path), "--events", str(b), "--surface", str(s), *common]) == 0
     # the loaded surface also processes the learning frames, so compare from frame 50 on
     ea = [json.loads(x) for x in a.read_text().splitlines() if json.loads(x)["frame"] >= 50]
     eb = [json.loads(x) for x in b.read_text().splitlines() if json.loads(x)["frame"] >= 50]

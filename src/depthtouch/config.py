@@ -8,6 +8,7 @@ leave out anything that keeps its default.
 from __future__ import annotations
 
 import dataclasses
+import math
 import sys
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -22,11 +23,23 @@ else:  # pragma: no cover - Python 3.10
     import tomli as tomllib
 
 
+def _show(value: object, limit: int = 30) -> str:
+    """repr for a one-line message, shortened (a TOML integer may have hundreds of digits)."""
+    r = " ".join(repr(value).split())
+    return r if len(r) <= limit else r[: limit - 3] + "..."
+
+
+def _key(key: object, limit: int = 30) -> str:
+    """A user's key for a one-line message: unquoted, whitespace collapsed, shortened."""
+    text = " ".join(str(key).split())
+    return text if len(text) <= limit else text[: limit - 3] + "..."
+
+
 def _range(name: str, value: float, lo: float, hi: float, *, lo_open: bool = False) -> None:
     bad = value <= lo if lo_open else value < lo
     if bad or value > hi or value != value:
         lb = "(" if lo_open else "["
-        raise ConfigError(f"{name} = {value!r} is out of range; allowed {lb}{lo}, {hi}]")
+        raise ConfigError(f"{name} = {_show(value)} is out of range; allowed {lb}{lo}, {hi}]")
 
 
 @dataclass(frozen=True)
@@ -34,7 +47,7 @@ class SurfaceConfig:
     """Surface model ("virtual touch panel").
 
     learn_s: seconds of empty-surface frames to learn from (default 1.5, range (0, 60]).
-    learn_frames: number of frames instead of seconds when set (>= 2).
+    learn_frames: number of frames instead of seconds when set (range [2, 10000]).
     statistic: per-pixel surface depth: "mean", "mode" (the paper's two), or "median".
     min_valid_fraction: a pixel is usable when at least this share of its learning samples is
         valid (non-zero) (default 0.5, range (0, 1]).
@@ -49,10 +62,8 @@ class SurfaceConfig:
 
     def validate(self) -> None:
         _range("surface.learn_s", self.learn_s, 0.0, 60.0, lo_open=True)
-        if self.learn_frames is not None and self.learn_frames < 2:
-            raise ConfigError(
-                f"surface.learn_frames = {self.learn_frames} is too small; use at least 2"
-            )
+        if self.learn_frames is not None:
+            _range("surface.learn_frames", self.learn_frames, 2, 10000)
         if self.statistic not in ("mean", "mode", "median"):
             raise ConfigError(
                 f"surface.statistic = {self.statistic!r} is unknown; use mean, mode or median"
@@ -157,7 +168,10 @@ class TrackingConfig:
 
 @dataclass(frozen=True)
 class FilterConfig:
-    """Touch path correction: ``name`` of the filter and its parameters (see filters.py)."""
+    """Touch path correction: ``name`` of the filter and its parameters (see filters.py).
+
+    params: finite numbers by name; which names a filter takes is checked by filters.py.
+    """
 
     name: str = "none"
     params: Mapping[str, float] = field(default_factory=dict)
@@ -165,7 +179,52 @@ class FilterConfig:
     def validate(self) -> None:
         for k, v in self.params.items():
             if not isinstance(v, (int, float)) or isinstance(v, bool):
-                raise ConfigError(f"filter.params.{k} = {v!r} must be a number")
+                raise ConfigError(f"filter.params.{k} = {_show(v)} must be a number")
+            try:
+                finite = math.isfinite(v)
+            except OverflowError:  # an integer beyond float range
+                finite = False
+            if not finite:
+                raise ConfigError(f"filter.params.{k} = {_show(v)} must be a finite number")
+
+
+@dataclass(frozen=True)
+class AdaptConfig:
+    """Surface adaptation (the paper's static-surface limitation, lifted).
+
+    enabled: update the surface while running (default true).
+    absorb_s: a change of the surface that stays still this long becomes surface (an object put
+        down, or taken away) (default 1.0 s, range [0.1, 60]).
+    still_mm: a pixel is still when it moves less than max(still_mm, 3 sigma) between two visits
+        (default 3.0 mm).
+    drift_tau_s: time constant of the slow update of unchanged pixels (temperature drift)
+        (default 30 s, range [1, 3600]).
+    stripes: the update visits one horizontal stripe of the image per frame, so that its cost is
+        spread evenly over frames (default 12, range [1, 64]).
+    bump_fraction: share of the surface changed at once that means the camera moved
+        (default 0.5, range (0, 1]).
+    bump_s: how long such a change must stay, still, before the surface is learned again
+        (default 1.0 s).
+    keep_out_mm: nothing within this distance of an active touch is absorbed (default 80 mm).
+    """
+
+    enabled: bool = True
+    absorb_s: float = 1.0
+    still_mm: float = 3.0
+    drift_tau_s: float = 30.0
+    stripes: int = 12
+    bump_fraction: float = 0.5
+    bump_s: float = 1.0
+    keep_out_mm: float = 80.0
+
+    def validate(self) -> None:
+        _range("adapt.absorb_s", self.absorb_s, 0.1, 60.0)
+        _range("adapt.still_mm", self.still_mm, 0.0, 100.0)
+        _range("adapt.drift_tau_s", self.drift_tau_s, 1.0, 3600.0)
+        _range("adapt.stripes", self.stripes, 1, 64)
+        _range("adapt.bump_fraction", self.bump_fraction, 0.0, 1.0, lo_open=True)
+        _range("adapt.bump_s", self.bump_s, 0.0, 60.0)
+        _range("adapt.keep_out_mm", self.keep_out_mm, 0.0, 1000.0)
 
 
 @dataclass(frozen=True)
@@ -177,6 +236,7 @@ class PipelineConfig:
     touchpoints: TouchPointConfig = field(default_factory=TouchPointConfig)
     tracking: TrackingConfig = field(default_factory=TrackingConfig)
     filter: FilterConfig = field(default_factory=FilterConfig)
+    adapt: AdaptConfig = field(default_factory=AdaptConfig)
 
     def validate(self) -> PipelineConfig:
         for f in dataclasses.fields(self):
@@ -189,6 +249,11 @@ class PipelineConfig:
         for name, values in stages.items():
             if name not in _STAGES:
                 raise ConfigError(f"unknown config section [{name}]; use one of {sorted(_STAGES)}")
+            if not isinstance(values, Mapping):
+                raise ConfigError(
+                    f"replace({name}=...) takes a mapping of field values, got "
+                    f"{type(values).__name__}"
+                )
             changes[name] = _build(_STAGES[name], name, {**_asdict(getattr(self, name)), **values})
         return dataclasses.replace(self, **changes).validate()
 
@@ -199,6 +264,7 @@ _STAGES: dict[str, type] = {
     "touchpoints": TouchPointConfig,
     "tracking": TrackingConfig,
     "filter": FilterConfig,
+    "adapt": AdaptConfig,
 }
 
 
@@ -208,12 +274,14 @@ def _asdict(obj: Any) -> dict[str, Any]:
 
 def _build(cls: type, section: str, values: Mapping[str, Any]) -> Any:
     if not isinstance(values, Mapping):
-        raise ConfigError(f"config section [{section}] must be a table, got {type(values).__name__}")
+        raise ConfigError(
+            f"config section [{section}] must be a table, got {type(values).__name__}"
+        )
     names = {f.name: f for f in dataclasses.fields(cls)}
-    unknown = sorted(set(values) - set(names))
+    unknown = sorted(set(values) - set(names), key=str)
     if unknown:
         raise ConfigError(
-            f"unknown key {section}.{unknown[0]}; allowed: {', '.join(sorted(names))}"
+            f"unknown key {section}.{_key(unknown[0])}; allowed: {', '.join(sorted(names))}"
         )
     kwargs: dict[str, Any] = {}
     for k, v in values.items():
@@ -224,16 +292,19 @@ def _build(cls: type, section: str, values: Mapping[str, Any]) -> Any:
             kwargs[k] = dict(v)
         elif isinstance(default, bool) or (default is not None and isinstance(default, str)):
             if type(v) is not type(default):
-                raise ConfigError(f"{section}.{k} = {v!r} must be a {type(default).__name__}")
+                raise ConfigError(f"{section}.{k} = {_show(v)} must be a {type(default).__name__}")
             kwargs[k] = v
         elif isinstance(default, int) or (default is None and k.endswith("frames")):
             if v is not None and (not isinstance(v, int) or isinstance(v, bool)):
-                raise ConfigError(f"{section}.{k} = {v!r} must be a whole number")
+                raise ConfigError(f"{section}.{k} = {_show(v)} must be a whole number")
             kwargs[k] = v
         elif isinstance(default, float):
             if not isinstance(v, (int, float)) or isinstance(v, bool):
-                raise ConfigError(f"{section}.{k} = {v!r} must be a number")
-            kwargs[k] = float(v)
+                raise ConfigError(f"{section}.{k} = {_show(v)} must be a number")
+            try:
+                kwargs[k] = float(v)
+            except OverflowError:  # an integer beyond float range: validate() names the range
+                kwargs[k] = float("inf") if v > 0 else float("-inf")
         else:
             kwargs[k] = v
     return cls(**kwargs)
@@ -243,9 +314,11 @@ def config_from_dict(data: Mapping[str, Any]) -> PipelineConfig:
     """Build and validate a config from nested mappings (as parsed from TOML)."""
     if not isinstance(data, Mapping):
         raise ConfigError("a config must be a table of sections")
-    unknown = sorted(set(data) - set(_STAGES))
+    unknown = sorted(set(data) - set(_STAGES), key=str)
     if unknown:
-        raise ConfigError(f"unknown config section [{unknown[0]}]; use one of {sorted(_STAGES)}")
+        raise ConfigError(
+            f"unknown config section [{_key(unknown[0])}]; use one of {sorted(_STAGES)}"
+        )
     stages = {name: _build(cls, name, data.get(name, {})) for name, cls in _STAGES.items()}
     return PipelineConfig(**stages).validate()
 
@@ -272,6 +345,8 @@ def load_config(path: str | Path) -> PipelineConfig:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as e:
         raise ConfigError(f"config file {p} is not valid TOML ({e}); fix the syntax") from e
+    except RecursionError:  # absurdly deep nesting of arrays or inline tables
+        raise ConfigError(f"config file {p} nests too deeply; fix the syntax") from None
     return config_from_dict(data)
 
 
@@ -281,8 +356,31 @@ def _toml_value(v: Any) -> str:
     if isinstance(v, (int, float)):
         return repr(v)
     if isinstance(v, str):
-        return '"' + v.replace("\\", "\\\\").replace('"', '\\"') + '"'
-    raise ConfigError(f"cannot write {v!r} to TOML")
+        return _toml_string(v)
+    raise ConfigError(f"cannot write {_show(v)} to TOML")
+
+
+_TOML_ESCAPES = {'"': '\\"', "\\": "\\\\", "\b": "\\b", "\t": "\\t", "\n": "\\n", "\f": "\\f",
+                 "\r": "\\r"}
+
+
+def _toml_string(text: str) -> str:
+    """A TOML basic string: quotes, backslashes and control characters escaped."""
+    out = []
+    for c in text:
+        if c in _TOML_ESCAPES:
+            out.append(_TOML_ESCAPES[c])
+        elif ord(c) < 0x20 or ord(c) == 0x7F:
+            out.append(f"\\u{ord(c):04x}")
+        else:
+            out.append(c)
+    return '"' + "".join(out) + '"'
+
+
+def _toml_key(key: str) -> str:
+    """A bare key when TOML allows one, else a quoted key."""
+    bare = key != "" and all(c.isascii() and (c.isalnum() or c in "-_") for c in key)
+    return key if bare else _toml_string(key)
 
 
 def dump_config(cfg: PipelineConfig) -> str:
@@ -293,9 +391,9 @@ def dump_config(cfg: PipelineConfig) -> str:
         nested = {k: v for k, v in values.items() if isinstance(v, dict)}
         for k, v in values.items():
             if k not in nested:
-                lines.append(f"{k} = {_toml_value(v)}")
+                lines.append(f"{_toml_key(k)} = {_toml_value(v)}")
         for k, v in nested.items():
-            lines.append(f"[{section}.{k}]")
-            lines.extend(f"{kk} = {_toml_value(vv)}" for kk, vv in v.items())
+            lines.append(f"[{section}.{_toml_key(k)}]")
+            lines.extend(f"{_toml_key(kk)} = {_toml_value(vv)}" for kk, vv in v.items())
         lines.append("")
     return "\n".join(lines)

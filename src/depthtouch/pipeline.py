@@ -17,6 +17,7 @@ from typing import Any, Protocol
 
 import numpy as np
 
+from .adapt import SurfaceAdapter
 from .config import PipelineConfig
 from .errors import SurfaceError
 from .filters import TouchFilter, make_filter
@@ -43,6 +44,7 @@ class PipelineStats:
     learning_frames: int = 0
     skipped_frames: int = 0
     events: int = 0
+    relearns: int = 0
     skip_reasons: dict[str, int] = field(default_factory=dict)
 
 
@@ -75,6 +77,7 @@ class Pipeline:
         self._tracker = Tracker(self.config.tracking, self.config.touchpoints)
         self.surface: SurfaceModel | None = None
         self._bounds: BandBounds | None = None
+        self._adapter: SurfaceAdapter | None = None
         self._last_frame: Frame | None = None
         if surface is not None:
             self.set_surface(surface)
@@ -98,12 +101,15 @@ class Pipeline:
             surface = surface.with_statistic(self.config.surface.statistic)
         self.surface = surface
         self._bounds = band_bounds(surface, self.config.regions, self.config.touchpoints.tip_radius_mm)
+        self._adapter = (SurfaceAdapter(self.config.adapt, self._bounds)
+                         if self.config.adapt.enabled else None)
         self._tracker.scale_mm_per_px = surface.mm_per_px() if surface.K is not None else None
 
     def reset(self) -> None:
         """Forget the surface and all touches (ids keep increasing)."""
         self.surface = None
         self._bounds = None
+        self._adapter = None
         self._learner.reset()
         self._tracker.reset()
         self._filter.reset()
@@ -131,6 +137,11 @@ class Pipeline:
         b = self._bounds
         assert b is not None
         t0 = time.perf_counter()
+        if self._adapter is not None:
+            touching = [t.xy_px for t in self._tracker.tracks if t.active]
+            if self._adapter.update(frame.depth, frame.timestamp_s, np.array(touching)) == "bump":
+                return self._relearn(frame)
+        ta = time.perf_counter()
         band, high = band_masks(frame.depth, b)
         regions = find_regions(band, b)
         t1 = time.perf_counter()
@@ -142,12 +153,28 @@ class Pipeline:
         t4 = time.perf_counter()
         self.last_points = points
         self.last_timing_ms = {
-            "regions": (t1 - t0) * 1e3, "touchpoints": (t2 - t1) * 1e3,
+            "surface_update": (ta - t0) * 1e3, "regions": (t1 - ta) * 1e3, "touchpoints": (t2 - t1) * 1e3,
             "tracking": (t3 - t2) * 1e3, "filter_events": (t4 - t3) * 1e3,
             "total": (t4 - t0) * 1e3,
         }
         self._last_frame = frame
         self.stats.events += len(events)
+        return events
+
+    def _relearn(self, frame: Frame) -> list[TouchEvent]:
+        log.warning(
+            "frame %d: most of the surface changed and stays changed (camera moved?); "
+            "learning the surface again, no touches meanwhile", frame.index,
+        )
+        events = self._events(frame, self._tracker.end_all())
+        self._filter.reset()
+        self.surface = None
+        self._bounds = None
+        self._adapter = None
+        self._learner.reset()
+        self.stats.relearns += 1
+        self.stats.events += len(events)
+        self._last_frame = frame
         return events
 
     def finish(self) -> list[TouchEvent]:

@@ -41,41 +41,66 @@ class BandBounds:
     min_area_px: int
     open_px: int
     tu_mm: float
+    hand_max_mm: float
+
+
+def _depth_bounds(
+    surface_mm: np.ndarray, valid: np.ndarray, factor: np.ndarray, tl_mm: np.ndarray,
+    to_mm: float, tu_mm: float, hand_max_mm: float,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """uint16 (band_lo, band_hi, high_lo, high_hi) for a block of pixels (pure)."""
+    s_units = surface_mm / np.float32(to_mm)
+    # height h = (s - d) * to_mm * f  <=>  d = s - h / (to_mm * f)
+    per_mm = 1.0 / (np.float32(to_mm) * factor)
+    band_lo = np.ceil(s_units - np.float32(tu_mm) * per_mm + 1e-3)
+    band_hi = np.floor(s_units - tl_mm * per_mm - 1e-3)
+    high_hi = band_lo - 1
+    high_lo = np.ceil(s_units - np.float32(hand_max_mm) * per_mm)
+    def clip(a: np.ndarray, empty: int) -> np.ndarray:
+        out = np.clip(a, 1, 65535, out=a).astype(np.uint16)
+        np.copyto(out, np.uint16(empty), where=~valid)
+        return out
+
+    return clip(band_lo, 1), clip(band_hi, 0), clip(high_lo, 1), clip(high_hi, 0)
 
 
 def band_bounds(surface: SurfaceModel, config: RegionConfig, tip_radius_mm: float = 7.0) -> BandBounds:
-    """Precompute the per-pixel bounds for :func:`band_masks` (once per surface; pure)."""
+    """Precompute the per-pixel bounds for :func:`band_masks` (once per surface).
+
+    The bounds own a copy of the surface depth, so that :func:`refresh_rows` can follow a
+    surface that updates itself without touching the caller's model.
+    """
     cfg = config
     to_mm = surface.depth_scale_m * 1000.0
     f = height_factor(surface)
     tl = np.maximum(np.float32(cfg.tl_floor_mm), np.float32(cfg.noise_k) * surface.sigma_mm)
     # Tl can never reach Tu: a camera this noisy leaves an empty band (reported, not hidden).
     tl = np.minimum(tl, np.float32(cfg.tu_mm)).astype(np.float32)
-    s_units = surface.depth_mm / np.float32(to_mm)
-    # height h = (s - d) * to_mm * f  <=>  d = s - h / (to_mm * f)
-    per_mm = 1.0 / (np.float32(to_mm) * f)
-    band_lo = np.ceil(s_units - np.float32(cfg.tu_mm) * per_mm + 1e-3)
-    band_hi = np.floor(s_units - tl * per_mm - 1e-3)
-    high_hi = band_lo - 1
-    high_lo = np.ceil(s_units - np.float32(cfg.hand_max_mm) * per_mm)
-    ok = surface.valid
-    u16 = np.iinfo(np.uint16).max
-
-    def clip(a: np.ndarray, empty: int) -> np.ndarray:
-        return np.where(ok, np.clip(a, 1, u16), empty).astype(np.uint16)
-
+    surface_mm = surface.depth_mm.astype(np.float32, copy=True)
+    bl, bh, hl, hh = _depth_bounds(surface_mm, surface.valid, f, tl, to_mm, cfg.tu_mm,
+                                   cfg.hand_max_mm)
     mm_px = surface.mm_per_px()
     min_area = max(cfg.min_area_floor_px, int(round(cfg.min_area_mm2 / (mm_px * mm_px))))
     # an opening wider than a finger would erase it: keep it only where fingers span >= 4 px
     finger_px = 2.0 * tip_radius_mm / mm_px
     open_px = cfg.open_px if finger_px >= cfg.open_px + 1 else 1
     return BandBounds(
-        band_lo=clip(band_lo, 1), band_hi=clip(band_hi, 0),
-        high_lo=clip(high_lo, 1), high_hi=clip(high_hi, 0),
-        factor=f, tl_mm=tl, surface_mm=surface.depth_mm, sigma_mm=surface.sigma_mm,
+        band_lo=bl, band_hi=bh, high_lo=hl, high_hi=hh,
+        factor=f, tl_mm=tl, surface_mm=surface_mm, sigma_mm=surface.sigma_mm,
         valid=surface.valid, to_mm=to_mm, mm_per_px=mm_px, min_area_px=min_area,
-        open_px=open_px, tu_mm=cfg.tu_mm,
+        open_px=open_px, tu_mm=cfg.tu_mm, hand_max_mm=cfg.hand_max_mm,
     )
+
+
+def refresh_rows(bounds: BandBounds, y0: int, y1: int) -> None:
+    """Recompute the depth bounds of rows y0:y1 after ``bounds.surface_mm`` changed there."""
+    rows = slice(y0, y1)
+    bl, bh, hl, hh = _depth_bounds(
+        bounds.surface_mm[rows], bounds.valid[rows], bounds.factor[rows], bounds.tl_mm[rows],
+        bounds.to_mm, bounds.tu_mm, bounds.hand_max_mm,
+    )
+    bounds.band_lo[rows], bounds.band_hi[rows] = bl, bh
+    bounds.high_lo[rows], bounds.high_hi[rows] = hl, hh
 
 
 def band_masks(depth: np.ndarray, bounds: BandBounds) -> tuple[np.ndarray, np.ndarray]:
