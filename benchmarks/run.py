@@ -12,7 +12,6 @@ import argparse
 import datetime as _dt
 import platform
 import sys
-import time
 from pathlib import Path
 
 import cv2
@@ -21,10 +20,9 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests"))
 
-from synth import Finger, render_heights  # noqa: E402
-
 from depthtouch.pipeline import Pipeline  # noqa: E402
 from depthtouch.types import Frame  # noqa: E402
+from synth import Finger, render_heights  # noqa: E402
 
 RESOLUTIONS = [(512, 424), (640, 480), (848, 480), (1280, 720)]
 TOUCHES = [0, 2, 5, 10]

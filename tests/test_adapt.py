@@ -54,9 +54,9 @@ def test_object_becomes_surface_within_two_seconds():
     t_absorbed = None
     for f in frames([lambda k: with_box] * 120):
         p.process(f)
-        if p._bounds is not None and f.index >= 45 and t_absorbed is None:
-            if np.median(p._bounds.surface_mm[205:255, 255:345]) < 950:
-                t_absorbed = (f.index - 45) / FPS
+        if (p._bounds is not None and f.index >= 45 and t_absorbed is None
+                and np.median(p._bounds.surface_mm[205:255, 255:345]) < 950):
+            t_absorbed = (f.index - 45) / FPS
     assert t_absorbed is not None and t_absorbed <= 2.0
 
 

@@ -65,5 +65,5 @@ def test_regions_found_and_small_ones_dropped(surface):
     r = find_regions(band, b)
     assert len(r) == 2
     assert np.all(r.area_px >= b.min_area_px)
-    for m, (x, y, w, h) in zip(r.masks, r.bbox_xywh):
+    for m, (_x, _y, w, h) in zip(r.masks, r.bbox_xywh):
         assert m.shape == (h, w) and m.any()

@@ -209,10 +209,10 @@ class Pipeline:
         events: list[TouchEvent] = []
         for u in updates:
             t = u.track
-            xy = filtered.get(t.id)
-            if xy is None:
-                xy = getattr(t, "last_out", t.xy_px)
-            t.last_out = xy  # type: ignore[attr-defined]
+            got = filtered.get(t.id)
+            # grace frames and up repeat the last filtered position
+            xy = got if got is not None else (t.out_xy if t.out_xy is not None else t.xy_px)
+            t.out_xy = xy
             extra: dict[str, Any] = {"area": t.area_px}
             if np.isfinite(t.height_mm):
                 extra["h"] = round(float(t.height_mm), 2)

@@ -173,7 +173,9 @@ def find_regions(band: np.ndarray, bounds: BandBounds) -> Regions:
     return Regions(np.asarray(boxes, np.int64), np.asarray(areas, np.int64), tuple(masks))
 
 
-def height_mm(depth: np.ndarray, bounds: BandBounds, roi: tuple[int, int, int, int] | None = None) -> np.ndarray:
+def height_mm(
+    depth: np.ndarray, bounds: BandBounds, roi: tuple[int, int, int, int] | None = None
+) -> np.ndarray:
     """Height above the surface in mm (float32), NaN where depth or surface is missing.
 
     With ``roi`` = (x, y, w, h), only that window is computed (the per-region path).

@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from .config import PipelineConfig
-from .errors import SourceError
+from .errors import ConfigError, SourceError
 from .outputs.base import EventSink
 from .pipeline import Pipeline
 from .sources import DepthSource, open_source
@@ -85,16 +85,25 @@ def build_sinks(
     calibration: object | None = None,
 ) -> list[EventSink]:
     """The sinks a command asked for (JSON Lines file, TUIO UDP)."""
+    from .outputs.jsonl import JsonlSink
+
     sinks: list[EventSink] = []
-    if events_path:
-        from .outputs.jsonl import JsonlSink
+    try:
+        if events_path:
+            sinks.append(JsonlSink(events_path))
+        if tuio:
+            from .outputs.tuio import TuioSink, parse_hostport
 
-        sinks.append(JsonlSink(events_path))
-    if tuio:
-        from .outputs.tuio import TuioSink, parse_hostport
-
-        host, port = parse_hostport(tuio)
-        sinks.append(TuioSink(host, port, calibration=calibration))  # type: ignore[arg-type]
+            host, port = parse_hostport(tuio)
+            sinks.append(TuioSink(host, port, calibration=calibration))  # type: ignore[arg-type]
+    except BaseException:
+        # a later sink failed: the ones already open keep nothing (no temporary events file)
+        for s in sinks:
+            if isinstance(s, JsonlSink):
+                s.close(commit=False)
+            else:
+                s.close()
+        raise
     return sinks
 
 
@@ -129,10 +138,22 @@ def replay(
         cfg = cfg.replace(filter={"name": filter_name})
     surface = load_surface(surface_path) if surface_path else None
     calibration = load_calibration_file(calibration_path)
+    if surface_frames is not None and surface_frames < 2:
+        raise ConfigError(f"--surface-frames {surface_frames} is too small; give at least 2")
+    rec_path = Path(str(recording))
+    for out in (events_path, save_surface_path):
+        if out and rec_path.exists() and Path(out).resolve() == rec_path.resolve():
+            raise SourceError(f"{out}: is the recording itself; give another output file name")
     if save_surface_path:
         parent = Path(save_surface_path).parent
+        if Path(save_surface_path).is_dir():
+            raise SourceError(
+                f"{save_surface_path}: is a folder; give a file name for the surface"
+            )
         if not (parent if str(parent) else Path(".")).is_dir():
-            raise SourceError(f"{save_surface_path}: folder {parent} does not exist; create it first")
+            raise SourceError(
+                f"{save_surface_path}: folder {parent} does not exist; create it first"
+            )
     pipeline = Pipeline(cfg, surface=surface, calibration=calibration,  # type: ignore[arg-type]
                         surface_frames=surface_frames)
     with contextlib.ExitStack() as stack:

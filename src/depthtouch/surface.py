@@ -14,10 +14,12 @@ import json
 import os
 import tempfile
 import zipfile
+import zlib
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+from numpy.lib.npyio import NpzFile
 
 from .config import SurfaceConfig
 from .errors import SurfaceError
@@ -75,6 +77,8 @@ class SurfaceModel:
         """Write to an ``.npz`` file atomically."""
         p = Path(path)
         parent = p.parent if str(p.parent) else Path(".")
+        if p.is_dir():
+            raise SurfaceError(f"{p}: is a folder; give a file name for the surface (.npz)")
         if not parent.is_dir():
             raise SurfaceError(f"{p}: folder {parent} does not exist; create it first")
         meta = {"format": SURFACE_FORMAT, "statistic": self.statistic,
@@ -92,6 +96,9 @@ class SurfaceModel:
             with os.fdopen(fd, "wb") as fh:
                 np.savez_compressed(fh, **arrays)  # type: ignore[arg-type]
             os.replace(tmp, p)
+        except OSError as e:
+            Path(tmp).unlink(missing_ok=True)
+            raise SurfaceError(f"{p}: cannot write ({e.strerror}); choose another path") from e
         except BaseException:
             Path(tmp).unlink(missing_ok=True)
             raise
@@ -104,14 +111,24 @@ def load_surface(path: str | Path) -> SurfaceModel:
     if not p.is_file():
         raise SurfaceError(f"{p}: no such surface file; learn one with --save-surface")
     try:
-        with np.load(p, allow_pickle=False) as data:
-            meta = json.loads(str(data["meta"]))
-            arrays = {k: data[k] for k in ("mean_mm", "mode_mm", "median_mm", "sigma_mm", "valid")}
-            K = data["K"] if "K" in data.files else None
-    except (OSError, ValueError, KeyError, zipfile.BadZipFile, EOFError, json.JSONDecodeError) as e:
+        with p.open("rb") as fh:
+            data = np.load(fh, allow_pickle=False)
+            if not isinstance(data, NpzFile):  # a bare .npy array
+                raise KeyError("meta")
+            with data:
+                meta = json.loads(str(data["meta"]))
+                arrays = {k: data[k] for k in ("mean_mm", "mode_mm", "median_mm", "sigma_mm",
+                                               "valid")}
+                K = data["K"] if "K" in data.files else None
+        if not all(isinstance(a, np.ndarray) for a in [*arrays.values(), K]
+                   if a is not None):  # zip members without the .npy format
+            raise ValueError("not arrays")
+    except (OSError, ValueError, KeyError, zipfile.BadZipFile, zlib.error, EOFError,
+            RuntimeError) as e:  # RuntimeError: encrypted or unsupported zip, deep JSON
         raise SurfaceError(
-            f"{p}: not a depthtouch surface file ({type(e).__name__}); learn one with "
-            "--save-surface"
+            f"{p}: not a depthtouch surface file "
+            f"({'damaged data' if isinstance(e, zlib.error) else type(e).__name__}); "
+            "learn one with --save-surface"
         ) from None
     if not isinstance(meta, dict) or meta.get("format") != SURFACE_FORMAT:
         raise SurfaceError(f"{p}: not a {SURFACE_FORMAT} file; learn one with --save-surface")
@@ -122,16 +139,26 @@ def load_surface(path: str | Path) -> SurfaceModel:
         arrays[k].dtype != np.float32 for k in ("mean_mm", "mode_mm", "median_mm", "sigma_mm")
     ):
         raise SurfaceError(f"{p}: unexpected array types; the file is damaged, learn it again")
+    if not all(np.all(np.isfinite(arrays[k])) for k in ("mean_mm", "mode_mm", "median_mm",
+                                                        "sigma_mm")):
+        raise SurfaceError(f"{p}: NaN or inf in the surface; the file is damaged, learn it again")
     statistic = meta.get("statistic")
     if statistic not in ("mean", "mode", "median"):
         raise SurfaceError(f"{p}: unknown statistic {statistic!r}; learn the surface again")
     try:
         scale = float(meta["depth_scale_m"])
         n = int(meta["n_frames"])
-    except (KeyError, TypeError, ValueError):
+    except (KeyError, TypeError, ValueError, OverflowError):
         raise SurfaceError(f"{p}: metadata incomplete; learn the surface again") from None
-    if K is not None and (K.shape != (3, 3) or not np.all(np.isfinite(K))):
-        raise SurfaceError(f"{p}: K is not a finite 3x3 matrix; learn the surface again")
+    if not (1e-6 <= scale <= 1.0) or n < 1:
+        raise SurfaceError(
+            f"{p}: depth_scale_m {scale!r} or n_frames {n} out of range; learn the surface again"
+        )
+    if K is not None and (K.dtype.kind not in "iuf" or K.shape != (3, 3)
+                          or not np.all(np.isfinite(K)) or K[0, 0] <= 0 or K[1, 1] <= 0):
+        raise SurfaceError(
+            f"{p}: K is not a finite 3x3 matrix with positive fx, fy; learn the surface again"
+        )
     base = SurfaceModel(arrays["median_mm"], arrays["mean_mm"], arrays["mode_mm"],
                         arrays["median_mm"], arrays["sigma_mm"], arrays["valid"], "median",
                         scale, K, n)

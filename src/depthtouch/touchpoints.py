@@ -75,7 +75,7 @@ def find_touch_points(
     margin = int(np.ceil(3.0 * r0)) + 3
     k_attach = cv2.getStructuringElement(cv2.MORPH_RECT, (5, 5))
     rr = max(1, int(round(r0)))
-    k_reach = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (4 * rr + 1, 4 * rr + 1))
+    k_reach = cv2.getStructuringElement(cv2.MORPH_RECT, (4 * rr + 1, 4 * rr + 1))
     xy_out: list[tuple[float, float]] = []
     h_out: list[float] = []
     a_out: list[int] = []
@@ -121,7 +121,7 @@ def _extremity_point(
     # smoothed map (noise averaged over 9 px): the tip cap that Tl cut away, and the finger body
     # that rises above Tu behind a steep tip.
     raised = hs > np.maximum(tl_mm * np.float32(1 / 3), np.float32(2.0))
-    finger = reg | (raised.view(np.uint8) & cv2.dilate(reg, k_reach))
+    finger = cv2.bitwise_or(reg, cv2.bitwise_and(raised.view(np.uint8), cv2.dilate(reg, k_reach)))
     _, cx, cy = _centroid(reg)
     dx, dy = cx - hand[0], cy - hand[1]
     norm = float(np.hypot(dx, dy))

@@ -35,6 +35,7 @@ class Track:
     missing: int = 0
     active: bool = False
     vel: np.ndarray = field(default_factory=lambda: np.zeros(2))
+    out_xy: np.ndarray | None = None  # last reported (filtered) position
 
     def predicted(self) -> np.ndarray:
         """Where the contact should be this frame (constant velocity per frame)."""
@@ -74,6 +75,8 @@ class Tracker:
 
     def update(self, points: TouchPoints) -> list[TrackUpdate]:
         """Advance one frame with this frame's touch points; returns the reported tracks."""
+        if not self.tracks and len(points) == 0:
+            return []
         scale = self.scale_mm_per_px if self.scale_mm_per_px is not None else 1.0
         pos = points.xy_px * scale
         h = points.height_mm
@@ -82,8 +85,12 @@ class Tracker:
         n_t, n_p = len(self.tracks), len(points)
         matched_t: dict[int, int] = {}
         if n_t and n_p:
-            tpos = np.array([t.predicted() for t in self.tracks])
-            cost = np.linalg.norm(tpos[:, None, :] - pos[None, :, :], axis=2)
+            # distance to where the contact should be, or to where it was: a sharp turn must
+            # not be lost to a prediction that overshoots
+            pred = np.array([t.predicted() for t in self.tracks])
+            last = np.array([t.pos for t in self.tracks])
+            cost = np.minimum(np.linalg.norm(pred[:, None, :] - pos[None, :, :], axis=2),
+                              np.linalg.norm(last[:, None, :] - pos[None, :, :], axis=2))
             allowed = np.where(
                 np.array([t.active for t in self.tracks])[:, None], ok_cont[None, :], ok_new[None, :]
             )

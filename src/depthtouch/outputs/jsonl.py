@@ -8,10 +8,12 @@ temporary file for long live runs.
 from __future__ import annotations
 
 import json
+import math
 import os
 import tempfile
 from collections.abc import Iterator
 from pathlib import Path
+from types import TracebackType
 from typing import IO
 
 from ..errors import OutputError
@@ -32,7 +34,9 @@ class JsonlSink(SinkBase):
         try:
             fd, tmp = tempfile.mkstemp(prefix=f".{self.path.name}.", suffix=".part", dir=parent)
         except OSError as e:
-            raise OutputError(f"{self.path}: cannot write here ({e.strerror}); choose another path") from e
+            raise OutputError(
+                f"{self.path}: cannot write here ({e.strerror}); choose another path"
+            ) from e
         self._tmp = Path(tmp)
         self._fh: IO[str] | None = os.fdopen(fd, "w", encoding="utf-8")
         self.count = 0
@@ -59,9 +63,46 @@ class JsonlSink(SinkBase):
         else:
             self._tmp.unlink(missing_ok=True)
 
-    def __exit__(self, exc_type, exc, tb) -> None:  # type: ignore[no-untyped-def]
+    def __exit__(
+        self,
+        exc_type: type[BaseException] | None,
+        exc: BaseException | None,
+        tb: TracebackType | None,
+    ) -> None:
         # A run that ends with an error other than Ctrl-C keeps no partial file.
         self.close(commit=exc_type is None or exc_type is KeyboardInterrupt)
+
+
+_STATES = ("down", "move", "up")
+
+
+def parse_event(obj: object) -> TouchEvent:
+    """A decoded JSON line -> TouchEvent; ValueError naming the first bad field.
+
+    ``frame`` and ``id`` are whole numbers >= 0, ``t``, ``x``, ``y`` finite numbers, ``state`` one
+    of down, move, up; unknown fields are kept in ``extra``.
+    """
+    if not isinstance(obj, dict):
+        raise ValueError(f"expected a JSON object, got {type(obj).__name__}")
+    for key in ("frame", "t", "id", "state", "x", "y"):
+        if key not in obj:
+            raise ValueError(f"no {key!r} field")
+    for key in ("frame", "id"):
+        v = obj[key]
+        if not isinstance(v, int) or isinstance(v, bool) or v < 0:
+            raise ValueError(f"{key} = {_short(v)} must be a whole number >= 0")
+    for key in ("t", "x", "y"):
+        v = obj[key]
+        if not isinstance(v, (int, float)) or isinstance(v, bool) or not math.isfinite(v):
+            raise ValueError(f"{key} = {_short(v)} must be a finite number")
+    if obj["state"] not in _STATES:
+        raise ValueError(f"state = {_short(obj['state'])} must be down, move or up")
+    return TouchEvent.from_dict(obj)
+
+
+def _short(value: object, limit: int = 30) -> str:
+    r = " ".join(repr(value).split())
+    return r if len(r) <= limit else r[: limit - 3] + "..."
 
 
 def read_events(path: str | Path) -> Iterator[TouchEvent]:
@@ -72,10 +113,30 @@ def read_events(path: str | Path) -> Iterator[TouchEvent]:
     except OSError as e:
         raise OutputError(f"{p}: cannot read events ({e.strerror}); check the path") from e
     with fh:
-        for n, line in enumerate(fh, 1):
+        n = 0
+        while True:
+            try:
+                line = fh.readline()
+            except UnicodeDecodeError:
+                raise OutputError(
+                    f"{p}:{n + 1}: not UTF-8 text; give a JSON Lines events file"
+                ) from None
+            if not line:
+                return
+            n += 1
             if not line.strip():
                 continue
             try:
-                yield TouchEvent.from_dict(json.loads(line))
-            except (ValueError, KeyError, TypeError) as e:
-                raise OutputError(f"{p}:{n}: not a touch event ({e}); see docs/formats.md") from e
+                obj = json.loads(line)
+            except (ValueError, RecursionError) as e:
+                # JSONDecodeError is a ValueError; deep nesting exhausts the recursion limit
+                raise OutputError(
+                    f"{p}:{n}: not JSON ({type(e).__name__}); see docs/formats.md"
+                ) from None
+            try:
+                event = parse_event(obj)
+            except ValueError as e:
+                raise OutputError(
+                    f"{p}:{n}: not a touch event ({e}); see docs/formats.md"
+                ) from None
+            yield event

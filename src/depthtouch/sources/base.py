@@ -74,14 +74,37 @@ class SourceBase:
         return self.frames()
 
 
+def short_repr(value: object, limit: int = 40) -> str:
+    """A one-line repr of a user's value for an error message (numpy scalars as Python ones)."""
+    if isinstance(value, np.generic):
+        value = value.item()
+    r = " ".join(repr(value).split())
+    return r if len(r) <= limit else r[: limit - 3] + "..."
+
+
+def _is_real(value: object) -> bool:
+    return isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(
+        value, (bool, np.bool_)
+    )
+
+
 def validate_depth_scale(value: object, where: str) -> float:
-    """A positive, finite depth scale in metres per unit, or SourceError."""
-    try:
-        scale = float(value)  # type: ignore[arg-type]
-    except (TypeError, ValueError):
+    """A positive, finite depth scale in metres per unit (a number or a 1-element array), or
+    SourceError."""
+    v = value
+    if isinstance(v, np.ndarray):
+        if v.size != 1:
+            raise SourceError(
+                f"{where}: depth_scale has shape {v.shape}; give one number in metres per unit, "
+                "e.g. 0.001"
+            )
+        v = v.reshape(-1)[0]
+    if not _is_real(v):
         raise SourceError(
-            f"{where}: depth_scale {value!r} is not a number; give metres per unit, e.g. 0.001"
-        ) from None
+            f"{where}: depth_scale {short_repr(v)} is not a number; give metres per unit, "
+            "e.g. 0.001"
+        )
+    scale = float(v)  # type: ignore[arg-type]
     if not (np.isfinite(scale) and 1e-6 <= scale <= 1.0):
         raise SourceError(
             f"{where}: depth_scale {scale!r} is out of range; give metres per unit in "
@@ -95,9 +118,12 @@ def validate_K(value: object, where: str) -> np.ndarray | None:
     if value is None:
         return None
     try:
-        K = np.asarray(value, dtype=np.float64)
+        raw = np.asarray(value)
     except (TypeError, ValueError):
-        raise SourceError(f"{where}: K is not numeric; give [[fx,0,cx],[0,fy,cy],[0,0,1]]") from None
+        raw = np.asarray(None)
+    if raw.dtype.kind not in "iuf":
+        raise SourceError(f"{where}: K is not numeric; give [[fx,0,cx],[0,fy,cy],[0,0,1]]")
+    K = raw.astype(np.float64)
     if K.shape != (3, 3) or not np.all(np.isfinite(K)) or K[0, 0] <= 0 or K[1, 1] <= 0:
         raise SourceError(
             f"{where}: K must be a finite 3x3 matrix with positive fx, fy, got shape {K.shape}; "
@@ -106,22 +132,29 @@ def validate_K(value: object, where: str) -> np.ndarray | None:
     return K
 
 
-def validate_timestamps(ts: np.ndarray, n: int, where: str) -> np.ndarray:
-    """float64 (n,), finite and strictly increasing, or SourceError."""
+def validate_timestamps(ts: object, n: int, where: str) -> np.ndarray:
+    """float64 (n,), finite and strictly increasing, or SourceError.
+
+    An array of another shape with exactly n elements (e.g. (n, 1)) is flattened.
+    """
     try:
-        t = np.asarray(ts, dtype=np.float64).reshape(-1)
+        raw = np.asarray(ts)
     except (TypeError, ValueError):
-        raise SourceError(f"{where}: timestamps are not numbers; give seconds as floats") from None
-    if t.shape[0] != n:
+        raw = np.asarray(None)
+    if raw.dtype.kind not in "iuf":
+        raise SourceError(f"{where}: timestamps are not numbers; give seconds as floats")
+    if raw.size != n:
         raise SourceError(
-            f"{where}: {t.shape[0]} timestamps for {n} frames; give one timestamp per frame"
+            f"{where}: {raw.size} timestamps (shape {raw.shape}) for {n} frames; give one "
+            "timestamp per frame"
         )
+    t = raw.astype(np.float64).reshape(-1)
     if not np.all(np.isfinite(t)):
         raise SourceError(f"{where}: timestamps contain NaN or inf; give finite seconds")
     if n > 1 and not np.all(np.diff(t) > 0):
         i = int(np.argmin(np.diff(t) > 0))
         raise SourceError(
-            f"{where}: timestamps are not strictly increasing (frame {i + 1}: {t[i + 1]} after "
-            f"{t[i]}); fix or drop the repeated frames"
+            f"{where}: timestamps are not strictly increasing (frame {i + 1}: {t[i + 1]!r} after "
+            f"{t[i]!r}); fix or drop the repeated frames"
         )
     return t

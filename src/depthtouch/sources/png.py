@@ -13,7 +13,13 @@ import numpy as np
 
 from ..errors import SourceError
 from ..types import Frame
-from .base import SourceBase, validate_depth_scale, validate_K, validate_timestamps
+from .base import (
+    SourceBase,
+    short_repr,
+    validate_depth_scale,
+    validate_K,
+    validate_timestamps,
+)
 
 
 class PngFolderSource(SourceBase):
@@ -23,14 +29,18 @@ class PngFolderSource(SourceBase):
         root = Path(folder)
         self.name = str(root)
         if not root.is_dir():
-            raise SourceError(f"{root}: not a folder; give a PNG recording folder (docs/formats.md)")
+            raise SourceError(
+                f"{root}: not a folder; give a PNG recording folder (docs/formats.md)"
+            )
         meta_path = root / "meta.json"
         if not meta_path.is_file():
             raise SourceError(f"{root}: no meta.json; add {{\"depth_scale\": 0.001, \"fps\": 30}}")
         try:
             meta = json.loads(meta_path.read_text(encoding="utf-8"))
-        except (OSError, UnicodeDecodeError, json.JSONDecodeError) as e:
-            raise SourceError(f"{meta_path}: not valid JSON ({e}); fix the file") from e
+        except (OSError, UnicodeDecodeError, json.JSONDecodeError, RecursionError) as e:
+            raise SourceError(
+                f"{meta_path}: not valid JSON ({_first_line(e)}); fix the file"
+            ) from e
         if not isinstance(meta, dict):
             raise SourceError(f"{meta_path}: must be a JSON object with depth_scale and fps")
         if "depth_scale" not in meta:
@@ -43,20 +53,21 @@ class PngFolderSource(SourceBase):
         n = len(self.paths)
         ts_path = root / "timestamps.txt"
         if ts_path.is_file():
-            try:
-                ts = np.loadtxt(ts_path, dtype=np.float64, ndmin=1)
-            except ValueError as e:
-                raise SourceError(f"{ts_path}: not one float per line ({e}); fix the file") from e
+            ts = read_timestamps_txt(ts_path)
         else:
             fps = meta.get("fps")
             if not isinstance(fps, (int, float)) or isinstance(fps, bool) or not fps > 0:
                 raise SourceError(
-                    f"{meta_path}: fps {fps!r} must be a positive number when there is no "
-                    "timestamps.txt"
+                    f"{meta_path}: fps {short_repr(fps)} must be a positive number when there "
+                    "is no timestamps.txt"
                 )
             ts = np.arange(n, dtype=np.float64) / float(fps)
         self.timestamps = validate_timestamps(ts, n, str(root))
         first = self._read(0)
+        if first.shape[0] < 8 or first.shape[1] < 8:
+            raise SourceError(
+                f"{self.paths[0]}: frames of {first.shape} are too small; expected H, W >= 8"
+            )
         self.resolution_wh = (int(first.shape[1]), int(first.shape[0]))
         dt = np.diff(self.timestamps)
         self.fps = float(1.0 / np.median(dt)) if dt.size else None
@@ -87,6 +98,31 @@ class PngFolderSource(SourceBase):
             yield Frame(img, float(self.timestamps[i]), i, self.depth_scale_m, self.K)
 
 
+def _first_line(e: BaseException, limit: int = 80) -> str:
+    text = str(e).strip().splitlines()[0] if str(e).strip() else type(e).__name__
+    return text if len(text) <= limit else text[: limit - 3] + "..."
+
+
+def read_timestamps_txt(path: Path) -> np.ndarray:
+    """One float (seconds) per non-empty line, float64 (N,); SourceError naming the bad line."""
+    try:
+        lines = path.read_text(encoding="utf-8").splitlines()
+    except (OSError, UnicodeDecodeError) as e:
+        raise SourceError(f"{path}: cannot read ({_first_line(e)}); give a UTF-8 text file") from e
+    values: list[float] = []
+    for n, line in enumerate(lines, 1):
+        text = line.strip()
+        if not text:
+            continue
+        try:
+            values.append(float(text))
+        except ValueError:
+            raise SourceError(
+                f"{path}:{n}: {short_repr(text)} is not a number; give one float (seconds) per line"
+            ) from None
+    return np.asarray(values, dtype=np.float64)
+
+
 def write_png_folder(
     folder: str | Path,
     depth: np.ndarray,
@@ -95,31 +131,52 @@ def write_png_folder(
     K: np.ndarray | None = None,
     fps: float | None = None,
 ) -> Path:
-    """Write a recording folder; written to a temporary sibling and renamed, never half-done."""
+    """Write a recording folder; written to a temporary sibling and renamed, never half-done.
+
+    Arguments as for :func:`~depthtouch.sources.npz.write_npz`; fps (> 0) goes to meta.json
+    (default: from the timestamps). The folder must not exist or be empty.
+    """
     root = Path(folder)
-    if depth.dtype != np.uint16 or depth.ndim != 3:
-        raise SourceError(f"write_png_folder: depth must be uint16 (N, H, W), got {depth.shape}")
-    if root.exists() and any(root.iterdir()):
-        raise SourceError(f"{root}: folder exists and is not empty; choose a new folder")
+    if depth.dtype != np.uint16 or depth.ndim != 3 or depth.shape[0] == 0:
+        raise SourceError(
+            f"write_png_folder: depth must be uint16 (N, H, W) with N >= 1, got {depth.dtype} "
+            f"{depth.shape}"
+        )
+    ts = validate_timestamps(timestamps_s, depth.shape[0], "write_png_folder")
+    scale = validate_depth_scale(depth_scale_m, "write_png_folder")
+    Kv = validate_K(K, "write_png_folder")
+    if fps is None:
+        fps = float(1.0 / np.median(np.diff(ts))) if ts.size > 1 else 30.0
+    if not (isinstance(fps, (int, float)) and np.isfinite(fps) and fps > 0):
+        raise SourceError(f"write_png_folder: fps {fps!r} must be a positive number")
+    if root.exists() and (not root.is_dir() or any(root.iterdir())):
+        raise SourceError(f"{root}: exists and is not an empty folder; choose a new folder")
     parent = root.parent if str(root.parent) else Path(".")
     if not parent.is_dir():
         raise SourceError(f"{root}: parent folder {parent} does not exist; create it first")
-    tmp = Path(tempfile.mkdtemp(prefix=".depthtouch-", dir=parent))
+    try:
+        tmp = Path(tempfile.mkdtemp(prefix=f".{root.name}.", suffix=".part", dir=parent))
+    except OSError as e:
+        raise SourceError(f"{root}: cannot write here ({e.strerror}); choose another path") from e
     try:
         (tmp / "depth").mkdir()
         for i in range(depth.shape[0]):
-            cv2.imwrite(str(tmp / "depth" / f"{i:06d}.png"), depth[i])
-        ts = np.asarray(timestamps_s, dtype=np.float64)
-        if fps is None:
-            fps = float(1.0 / np.median(np.diff(ts))) if ts.size > 1 else 30.0
-        meta: dict[str, object] = {"depth_scale": float(depth_scale_m), "fps": float(fps)}
-        if K is not None:
-            meta["K"] = np.asarray(K, dtype=float).tolist()
+            target = tmp / "depth" / f"{i:06d}.png"
+            if not cv2.imwrite(str(target), depth[i]):
+                raise SourceError(f"{target}: OpenCV could not write the frame; check the disk")
+        meta: dict[str, object] = {"depth_scale": scale, "fps": float(fps)}
+        if Kv is not None:
+            meta["K"] = Kv.tolist()
         (tmp / "meta.json").write_text(json.dumps(meta), encoding="utf-8")
-        np.savetxt(tmp / "timestamps.txt", ts, fmt="%.6f")
+        # repr-exact seconds: the folder reads back the timestamps it was given
+        (tmp / "timestamps.txt").write_text("".join(f"{t!r}\n" for t in ts.tolist()),
+                                            encoding="utf-8")
         if root.exists():
             root.rmdir()
         tmp.rename(root)
+    except OSError as e:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise SourceError(f"{root}: cannot write ({e.strerror}); choose another path") from e
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise

@@ -1,0 +1,31 @@
+"""Depth-scene simulator: surfaces, an articulated hand and arm, camera noise, ground truth.
+
+Render a scene to a recording with per-frame ground truth::
+
+    from depthtouch.sim import render_scene, write_recording
+    rec = render_scene("taps", camera="kinect-v2", distance_m=1.2, tilt_deg=10, seed=3)
+    write_recording(rec, "taps.npz", "taps.truth.json")
+
+See docs/simulator.md for the camera profiles, the scenes and the truth format.
+"""
+
+from __future__ import annotations
+
+from .cameras import CAMERAS, PROFILES, CameraProfile, get_profile
+from .geometry import SURFACES
+from .render import SimRecording, finger_label, load_truth, render_scene, write_recording
+from .scenes import SCENES
+
+__all__ = [
+    "CAMERAS",
+    "PROFILES",
+    "SCENES",
+    "SURFACES",
+    "CameraProfile",
+    "SimRecording",
+    "finger_label",
+    "get_profile",
+    "load_truth",
+    "render_scene",
+    "write_recording",
+]

@@ -1,0 +1,213 @@
+"""An articulated hand and arm made of capsules, posed by where its fingertips are.
+
+The lead finger (usually the index) fixes the hand: its tip sphere rests at ``gap_mm`` above a
+surface point, its distal part rises at ``pitch_deg`` from the surface and its proximal part
+25 deg steeper, up to the knuckle. The palm rises backward from the knuckle line, then the
+forearm and upper arm leave the scene. Other extended fingers reach their own targets with
+the same distal pitch, pointing from their knuckle toward the target, with the proximal
+part bridging to the knuckle; the remaining fingers
+are curled under the palm but kept at least ``clearance_mm`` above the surface.
+Touch is tip contact: gap 0 means the tip sphere touches the surface at exactly one point.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from .geometry import Capsule, Primitive, Surface
+
+FINGERS: tuple[str, ...] = ("thumb", "index", "middle", "ring", "little")
+PALM, ARM = 5, 6  # label offsets of the palm and the arm; fingers use their FINGERS index
+
+
+@dataclass(frozen=True)
+class HandShape:
+    """Dimensions of one hand (mm). ``side`` is +1 for a right hand, -1 for a left one.
+
+    finger_radius_mm: radius of the index/middle/ring finger capsules (6-10 mm; varies per seed).
+    segments_mm: per finger (proximal, distal) lengths; distal includes the middle phalanx.
+    """
+
+    finger_radius_mm: float
+    segments_mm: dict[str, tuple[float, float]]
+    palm_length_mm: float
+    knuckle_spacing_mm: float
+    palm_radius_mm: float
+    forearm_radius_mm: float
+    side: int = 1
+
+    @classmethod
+    def random(cls, rng: np.random.Generator, side: int = 1) -> HandShape:
+        """A plausible adult hand; sizes scale together, finger radius 6-10 mm."""
+        scale = float(rng.uniform(0.88, 1.12))
+        r = float(rng.uniform(6.0, 10.0))
+        base = {"thumb": (36.0, 32.0), "index": (45.0, 44.0), "middle": (49.0, 48.0),
+                "ring": (46.0, 45.0), "little": (36.0, 36.0)}
+        return cls(
+            finger_radius_mm=r,
+            segments_mm={k: (a * scale, b * scale) for k, (a, b) in base.items()},
+            palm_length_mm=88.0 * scale,
+            knuckle_spacing_mm=max(19.0 * scale, 2.0 * r + 1.0),
+            palm_radius_mm=r + 4.0,
+            forearm_radius_mm=26.0 * scale,
+            side=side,
+        )
+
+    def radius(self, finger: str) -> float:
+        if finger == "little":
+            return self.finger_radius_mm * 0.85
+        if finger == "thumb":
+            return self.finger_radius_mm * 1.1
+        return self.finger_radius_mm
+
+
+@dataclass(frozen=True)
+class FingerTarget:
+    """An extended finger: its surface target (s, t) in mm and the tip's gap above it (>= 0)."""
+
+    finger: str
+    st_mm: tuple[float, float]
+    gap_mm: float
+
+
+@dataclass(frozen=True)
+class Tip:
+    """Where an extended fingertip is: the surface point under it, the normal there, the gap."""
+
+    finger: str
+    point_mm: np.ndarray
+    normal: np.ndarray
+    gap_mm: float
+    label: int
+
+
+def _unit(v: np.ndarray) -> np.ndarray:
+    return np.asarray(v / np.linalg.norm(v), dtype=np.float64)
+
+
+def build_hand(
+    shape: HandShape,
+    fingers: tuple[FingerTarget, ...],
+    yaw_deg: float,
+    pitch_deg: float,
+    surface: Surface,
+    label_base: int,
+    clearance_mm: float = 30.0,
+) -> tuple[list[Primitive], list[Tip]]:
+    """Capsules of a posed hand and arm (camera frame, mm), and its extended fingertips.
+
+    fingers: extended fingers, the first one leading (it sets the palm). yaw_deg: direction
+    the fingers point in the surface, 0 = toward -t (image top; the arm comes from the bottom),
+    positive turns toward +s. pitch_deg: lead finger angle to the surface (20-70).
+    label_base: labels are label_base + FINGERS index, + PALM, + ARM.
+    """
+    lead = fingers[0]
+    st = np.array([lead.st_mm])
+    n = surface.normal(st)[0]
+    e_s = surface.u
+    e_t = surface.tangent_t(st)[0]
+    yaw = math.radians(yaw_deg)
+    d = _unit(-math.cos(yaw) * e_t + math.sin(yaw) * e_s)
+    lat = _unit(shape.side * np.cross(d, n))
+    r = shape.radius(lead.finger)
+    phi = math.radians(pitch_deg)
+    phi2 = min(phi + math.radians(25.0), math.radians(85.0))
+    l1, l2 = shape.segments_mm[lead.finger]
+    tip_point = surface.point(st)[0]
+    c = tip_point + (r + lead.gap_mm) * n
+    mid = c - l2 * math.cos(phi) * d + l2 * math.sin(phi) * n
+    k_lead = mid - l1 * math.cos(phi2) * d + l1 * math.sin(phi2) * n
+
+    alpha = math.radians(22.0)
+    pdir = -math.cos(alpha) * d + math.sin(alpha) * n  # knuckles -> wrist
+    fwd = -pdir
+    down = _unit(-(n - (n @ pdir) * pdir))
+    lead_idx = max(FINGERS.index(lead.finger), 1)
+    knuckles: dict[str, np.ndarray] = {}
+    for j, name in enumerate(FINGERS[1:], start=1):
+        back = {"index": 0.0, "middle": -3.0, "ring": 2.0, "little": 9.0}[name]
+        knuckles[name] = k_lead + (j - lead_idx) * shape.knuckle_spacing_mm * lat + back * pdir
+    wrist = np.mean(list(knuckles.values()), axis=0) + shape.palm_length_mm * pdir
+    thumb_base = knuckles["index"] + 0.55 * shape.palm_length_mm * pdir \
+        - 0.9 * shape.knuckle_spacing_mm * lat + 0.3 * shape.palm_radius_mm * down
+
+    def lift(p: np.ndarray, radius: float) -> np.ndarray:
+        h = float(surface.height_mm(p)[0])
+        need = clearance_mm + radius - h
+        return p + need * n if need > 0 else p
+
+    prims: list[Primitive] = []
+    tips: list[Tip] = []
+    targets = {f.finger: f for f in fingers}
+    for name in FINGERS:
+        label = label_base + FINGERS.index(name)
+        fr = shape.radius(name)
+        s1, s2 = shape.segments_mm[name]
+        base = thumb_base if name == "thumb" else knuckles[name]
+        if name == lead.finger:
+            prims += [Capsule(k_lead, mid, fr, label), Capsule(mid, c, fr, label)]
+            tips.append(Tip(name, tip_point, n, lead.gap_mm, label))
+        elif name in targets:
+            f = targets[name]
+            fst = np.array([f.st_mm])
+            fn = surface.normal(fst)[0]
+            fp = surface.point(fst)[0]
+            fc = fp + (fr + f.gap_mm) * fn
+            # the distal part meets the surface like the lead finger's (same pitch), pointing
+            # from its knuckle toward its target; the proximal part bridges to the knuckle
+            dj = fc - base
+            dj = dj - (dj @ fn) * fn
+            dj = _unit(dj) if np.linalg.norm(dj) > 1e-6 else d
+            pj = min(phi, math.radians(45.0)) if name == "thumb" else phi
+            m = fc - s2 * math.cos(pj) * dj + s2 * math.sin(pj) * fn
+            prims += [Capsule(base, m, fr, label), Capsule(m, fc, fr, label)]
+            tips.append(Tip(name, fp, fn, f.gap_mm, label))
+        elif name == "thumb":
+            p1 = lift(base + 0.8 * s1 * fwd + 0.2 * s1 * down + 0.3 * s1 * lat, fr)
+            p2 = lift(p1 + 0.7 * s2 * lat + 0.2 * s2 * fwd, fr)
+            prims += [Capsule(base, p1, fr, label), Capsule(p1, p2, fr, label)]
+        else:
+            p1 = lift(base + 0.35 * s1 * fwd + 0.45 * s1 * down, fr)
+            p2 = lift(p1 - 0.3 * s2 * fwd + 0.35 * s2 * down, fr)
+            prims += [Capsule(base, p1, fr, label), Capsule(p1, p2, fr, label)]
+
+    palm = label_base + PALM
+    for name in FINGERS[1:]:
+        k = knuckles[name]
+        prims.append(Capsule(k, k + shape.palm_length_mm * pdir, shape.palm_radius_mm, palm))
+    gamma = alpha + math.radians(6.0)
+    adir = -math.cos(gamma) * d + math.sin(gamma) * n
+    arm = label_base + ARM
+    fr_mm = shape.forearm_radius_mm
+    w1 = wrist + 140.0 * adir
+    elbow = wrist + 270.0 * adir
+    shoulder = elbow + 280.0 * (-math.cos(math.radians(55)) * d + math.sin(math.radians(55)) * n)
+    prims += [
+        Capsule(wrist, w1, fr_mm * 0.95, arm),
+        Capsule(w1, elbow, fr_mm * 1.25, arm),
+        Capsule(elbow, _in_front(elbow, shoulder), fr_mm * 1.5, arm),
+    ]
+    return prims, tips
+
+
+def _in_front(a: np.ndarray, b: np.ndarray, min_z_mm: float = 250.0) -> np.ndarray:
+    """``b``, pulled back along a-b so that it stays ``min_z_mm`` in front of the camera.
+
+    On a concave surface near the image border "up" can point at the camera; an arm that
+    reached behind it would be nonsense (and would cover the whole image).
+    """
+    if b[2] >= min_z_mm or a[2] <= min_z_mm:
+        return b
+    f = (a[2] - min_z_mm) / (a[2] - b[2])
+    return np.asarray(a + f * (b - a), dtype=np.float64)
+
+
+def lateral_forward_st(yaw_deg: float, side: int) -> tuple[np.ndarray, np.ndarray]:
+    """Unit (s, t) directions of the hand's lateral (index -> little) and forward axes."""
+    yaw = math.radians(yaw_deg)
+    forward = np.array([math.sin(yaw), -math.cos(yaw)])
+    lateral = side * np.array([math.cos(yaw), math.sin(yaw)])
+    return lateral, forward

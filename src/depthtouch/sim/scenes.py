@@ -1,0 +1,529 @@
+"""Scene scripts: what moves where and when, as keyframed hand tracks, props and camera events.
+
+Every scene starts with :data:`EMPTY_S` seconds of empty surface (the recording contract needs
+at least one second to learn the surface). Positions are chosen in image terms (fractions of
+the frame) and turned into surface coordinates (s, t) by casting a ray, so a scene works for
+any camera, distance, tilt and surface. Lengths and speeds are in mm and m/s on the surface.
+Random choices come from the scene's own generator, so a seed gives one exact recording.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..errors import ConfigError
+from .geometry import Box, Capsule, Primitive, Rays, Surface
+from .hand import FingerTarget, HandShape, lateral_forward_st
+
+EMPTY_S = 1.5
+HOVER_MAX_MM = 100.0  # extended fingertips at most this high are listed as hovers
+UP_MM = 60.0  # fingertip height between touches
+
+
+class Track:
+    """Piecewise-linear keyframes of named channels; ``at(t)`` interpolates all of them."""
+
+    def __init__(self, t0: float, **values: float) -> None:
+        self.times: list[float] = [t0]
+        self.keys: list[dict[str, float]] = [dict(values)]
+
+    @property
+    def end_s(self) -> float:
+        return self.times[-1]
+
+    @property
+    def start_s(self) -> float:
+        return self.times[0]
+
+    def to(self, dt_s: float, **changes: float) -> Track:
+        """Move linearly to the changed values over ``dt_s`` seconds (> 0)."""
+        key = dict(self.keys[-1])
+        key.update(changes)
+        self.times.append(self.times[-1] + max(dt_s, 1e-3))
+        self.keys.append(key)
+        return self
+
+    def hold(self, dt_s: float) -> Track:
+        return self.to(dt_s)
+
+    def at(self, t: float) -> dict[str, float]:
+        times = np.asarray(self.times)
+        names = self.keys[-1].keys()
+        return {k: float(np.interp(t, times, [key.get(k, 0.0) for key in self.keys]))
+                for k in names}
+
+
+@dataclass
+class HandTrack:
+    """One hand over time: which fingers are extended (first leads) and their track.
+
+    Channels: s, t (lead target, mm), gap (lead tip, mm), yaw, pitch (deg), and for every other
+    extended finger f: ``f.dl``, ``f.df`` (offset from the lead target along the hand's lateral
+    and forward axes, mm) and ``f.gap``.
+    """
+
+    shape: HandShape
+    fingers: tuple[str, ...]
+    track: Track
+
+    def pose(self, t: float) -> tuple[tuple[FingerTarget, ...], float, float] | None:
+        if not (self.track.start_s <= t <= self.track.end_s):
+            return None
+        c = self.track.at(t)
+        lat, fwd = lateral_forward_st(c["yaw"], self.shape.side)
+        lead_st = np.array([c["s"], c["t"]])
+        out = [FingerTarget(self.fingers[0], (c["s"], c["t"]), max(c["gap"], 0.0))]
+        for f in self.fingers[1:]:
+            st = lead_st + c[f + ".dl"] * lat + c[f + ".df"] * fwd
+            out.append(FingerTarget(f, (float(st[0]), float(st[1])), max(c[f + ".gap"], 0.0)))
+        return tuple(out), c["yaw"], c["pitch"]
+
+
+@dataclass
+class Prop:
+    """Something else in the scene: ``build(t)`` gives its primitives at time t (or none)."""
+
+    build: Callable[[float], list[Primitive]]
+
+
+@dataclass
+class Script:
+    """A scene: duration, hands, props, camera bump, surface drift and named events (s)."""
+
+    duration_s: float
+    hands: list[HandTrack] = field(default_factory=list)
+    props: list[Prop] = field(default_factory=list)
+    events: list[tuple[str, float]] = field(default_factory=list)
+    bump_s: float | None = None
+    bump_deg_xyz: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    drift: Callable[[float], float] | None = None
+
+
+class SceneContext:
+    """What a scene script needs: the world surface, the camera rays, a generator."""
+
+    def __init__(self, surface: Surface, rays: Rays, rng: np.random.Generator) -> None:
+        self.surface = surface
+        self.rays = rays
+        self.rng = rng
+        self.base_yaw = self._base_yaw()
+
+    def _base_yaw(self) -> float:
+        """Arms come from the image bottom (yaw 0) when the camera looks at the surface nearly
+        head-on; when it looks obliquely (> 12 deg), from the side away from the camera (the
+        camera would otherwise see the back of the hand and no fingertip at all)."""
+        s = self.surface
+        to_cam = -s.origin_mm / np.linalg.norm(s.origin_mm)
+        cs, ct = float(to_cam @ s.u), float(to_cam @ s.v)
+        if math.hypot(cs, ct) < math.sin(math.radians(12.0)):
+            return 0.0
+        return math.degrees(math.atan2(cs, -ct))
+
+    def st_at(self, fx: float, fy: float) -> np.ndarray | None:
+        """Surface coordinates seen at the image point (fx * W, fy * H); None if off-surface."""
+        p = self.surface.hit(self.rays.ray(fx * (self.rays.w - 1), fy * (self.rays.h - 1)))
+        return None if p is None else self.surface.st_of(p)[0]
+
+    def spot(self, lo: float = 0.3, hi: float = 0.7) -> np.ndarray:
+        """A random surface point seen inside the central [lo, hi] part of the frame."""
+        for _ in range(100):
+            st = self.st_at(float(self.rng.uniform(lo, hi)), float(self.rng.uniform(lo, hi)))
+            if st is not None:
+                return st
+        raise ConfigError("the surface is not visible in the frame; reduce tilt or distance")
+
+    def mm_per_frac(self) -> float:
+        """Rough surface size (mm) of the frame's shorter side, to size paths."""
+        a, b = self.st_at(0.5, 0.3), self.st_at(0.5, 0.7)
+        if a is None or b is None:
+            return 300.0
+        return float(np.linalg.norm(a - b)) / 0.4
+
+    def hand(self, side: int = 1) -> HandShape:
+        return HandShape.random(self.rng, side)
+
+    def outside(self, st: np.ndarray, yaw: float) -> np.ndarray:
+        """The first surface point behind ``st`` (against the finger direction) out of view.
+
+        Steps back until the point projects outside the image (by 5 %) or comes nearer to the
+        camera than 40 % of the surface distance (a tilted or curved surface runs toward it).
+        """
+        _, fwd = lateral_forward_st(yaw, 1)
+        rays = self.rays
+        z_min = 0.4 * float(self.surface.origin_mm[2])
+        mx, my = 0.05 * rays.w, 0.05 * rays.h
+        dist = 0.0
+        while dist < 4000.0:
+            dist += 25.0
+            p = self.surface.point(st - fwd * dist)[0]
+            if p[2] < z_min:
+                break
+            x, y = rays.project(p)[0]
+            if x < -mx or x > rays.w - 1 + mx or y < -my or y > rays.h - 1 + my:
+                break
+        return np.asarray(st - fwd * dist, dtype=np.float64)
+
+    def enter(self, st: np.ndarray, yaw: float, pitch: float, t0: float,
+              fingers: dict[str, tuple[float, float]] | None = None) -> Track:
+        """A track that brings a hand from outside the view to hover above ``st``."""
+        far = self.outside(st, yaw)
+        extra: dict[str, float] = {}
+        for f, (dl, df) in (fingers or {}).items():
+            extra.update({f + ".dl": dl, f + ".df": df, f + ".gap": 250.0})
+        tr = Track(t0, s=float(far[0]), t=float(far[1]), gap=250.0, yaw=yaw, pitch=pitch,
+                   **extra)
+        ups = {f + ".gap": UP_MM for f in (fingers or {})}
+        return tr.to(0.9, s=float(st[0]), t=float(st[1]), gap=UP_MM, **ups)
+
+    def leave(self, tr: Track, dt_s: float = 0.7) -> Track:
+        c = tr.keys[-1]
+        far = self.outside(np.array([c["s"], c["t"]]), c["yaw"])
+        ups = {k: 250.0 for k in c if k.endswith(".gap")}
+        return tr.to(dt_s, s=float(far[0]), t=float(far[1]), gap=250.0, **ups)
+
+
+def _tap(tr: Track, rng: np.random.Generator, st: np.ndarray) -> Track:
+    tr.to(0.35, s=float(st[0]), t=float(st[1]), gap=UP_MM)
+    tr.to(float(rng.uniform(0.12, 0.2)), gap=0.0)
+    tr.hold(float(rng.uniform(0.3, 0.6)))
+    return tr.to(float(rng.uniform(0.12, 0.2)), gap=UP_MM)
+
+
+def _pitch(rng: np.random.Generator) -> float:
+    return float(rng.uniform(20.0, 70.0))
+
+
+def _yaw(ctx: SceneContext, centre: float = 0.0) -> float:
+    """A hand direction within 30 deg of ``centre`` (relative to the scene's base yaw)."""
+    return ctx.base_yaw + centre + float(ctx.rng.uniform(-30.0, 30.0))
+
+
+def scene_taps(ctx: SceneContext) -> Script:
+    rng = ctx.rng
+    yaw, pitch = _yaw(ctx), _pitch(rng)
+    spots = [ctx.spot(0.2, 0.8) for _ in range(5)]
+    tr = ctx.enter(spots[0], yaw, pitch, EMPTY_S)
+    for st in spots:
+        _tap(tr, rng, st)
+    ctx.leave(tr)
+    return Script(tr.end_s + 0.3, hands=[HandTrack(ctx.hand(), ("index",), tr)])
+
+
+def _path(kind: str, rng: np.random.Generator, size_mm: float) -> np.ndarray:
+    """(N, 2) path in mm around (0, 0): a line, a circle or a sharp zig-zag."""
+    if kind == "line":
+        a = rng.uniform(0, 2 * math.pi)
+        d = np.array([math.cos(a), math.sin(a)]) * size_mm / 2
+        return np.stack([-d, d])
+    if kind == "circle":
+        a0 = rng.uniform(0, 2 * math.pi)
+        ang = a0 + np.linspace(0, 2 * math.pi, 41)
+        return np.stack([np.cos(ang), np.sin(ang)], 1) * size_mm / 2
+    xs = np.linspace(-size_mm / 2, size_mm / 2, 6)
+    ys = np.array([-1, 1, -1, 1, -1, 1]) * size_mm / 5
+    return np.stack([xs, ys], 1)
+
+
+def scene_drags(ctx: SceneContext) -> Script:
+    rng = ctx.rng
+    yaw, pitch = _yaw(ctx), _pitch(rng)
+    size = min(0.3 * ctx.mm_per_frac(), 280.0)
+    kinds = [("line", 0.05, 0.3), ("circle", 0.2, 0.5), ("zigzag", 0.3, 1.0), ("line", 0.5, 1.0)]
+    tr: Track | None = None
+    for kind, vlo, vhi in kinds:
+        centre = ctx.spot(0.35, 0.65)
+        pts = centre + _path(kind, rng, size)
+        speed_mm_s = float(rng.uniform(vlo, vhi)) * 1000.0
+        if tr is None:
+            tr = ctx.enter(pts[0], yaw, pitch, EMPTY_S)
+        tr.to(0.35, s=float(pts[0, 0]), t=float(pts[0, 1]), gap=UP_MM)
+        tr.to(0.15, gap=0.0).hold(0.1)
+        for p, q in zip(pts[:-1], pts[1:]):
+            tr.to(float(np.linalg.norm(q - p)) / speed_mm_s, s=float(q[0]), t=float(q[1]))
+        tr.hold(0.1).to(0.15, gap=UP_MM)
+    assert tr is not None
+    ctx.leave(tr)
+    return Script(tr.end_s + 0.3, hands=[HandTrack(ctx.hand(), ("index",), tr)])
+
+
+def _spread(shape: HandShape, fingers: tuple[str, ...]) -> dict[str, tuple[float, float]]:
+    fwd = {"index": 0.0, "middle": 6.0, "ring": 0.0, "little": -14.0, "thumb": -45.0}
+    k = shape.knuckle_spacing_mm * 1.15
+    pos = {"index": 0.0, "middle": 1.0, "ring": 2.0, "little": 3.0, "thumb": -1.6}
+    lead = fingers[0]
+    return {f: ((pos[f] - pos[lead]) * k, fwd[f] - fwd[lead]) for f in fingers[1:]}
+
+
+def _multi_hand(ctx: SceneContext, side: int, fingers: tuple[str, ...], t0: float,
+                centre: np.ndarray, yaw: float, t_down: float, hold_s: float) -> HandTrack:
+    rng = ctx.rng
+    shape = ctx.hand(side)
+    offs = _spread(shape, fingers)
+    tr = ctx.enter(centre, yaw, float(rng.uniform(35.0, 60.0)), t0, offs)
+    tr.hold(max(t_down - tr.end_s, 0.01))
+    gaps = {f + ".gap": 0.0 for f in fingers[1:]}
+    # fingers land a few frames apart, like real hands
+    tr.to(0.15, gap=0.0)
+    for f in fingers[1:]:
+        tr.to(float(rng.uniform(0.03, 0.08)), **{f + ".gap": 0.0})
+    move = rng.normal(0, 1, 2)
+    move = move / np.linalg.norm(move) * 40.0
+    tr.hold(0.2).to(hold_s, s=float(centre[0] + move[0]), t=float(centre[1] + move[1]), **gaps)
+    tr.to(0.15, gap=UP_MM, **{f + ".gap": UP_MM for f in fingers[1:]})
+    ctx.leave(tr)
+    return HandTrack(shape, fingers, tr)
+
+
+def scene_multitouch(ctx: SceneContext) -> Script:
+    ca, cb = ctx.st_at(0.33, 0.5), ctx.st_at(0.67, 0.5)
+    if ca is None or cb is None:
+        ca, cb = ctx.spot(), ctx.spot()
+    a = _multi_hand(ctx, 1, ("index", "middle", "ring"), EMPTY_S, ca, _yaw(ctx, 20.0),
+                    EMPTY_S + 1.2, 1.6)
+    b = _multi_hand(ctx, -1, ("index", "middle"), EMPTY_S + 0.4, cb, _yaw(ctx, -20.0),
+                    EMPTY_S + 2.0, 0.9)
+    return Script(max(a.track.end_s, b.track.end_s) + 0.3, hands=[a, b])
+
+
+def scene_pinch(ctx: SceneContext) -> Script:
+    rng = ctx.rng
+    shape = ctx.hand(1)
+    yaw = _yaw(ctx)
+    centre = ctx.spot(0.4, 0.6)
+    lat, fwd = lateral_forward_st(yaw, shape.side)
+    e = -0.55 * lat - 0.83 * fwd  # index -> thumb direction (thumb side, toward the wrist)
+
+    def at(dist: float) -> dict[str, float]:
+        lead = centre - e * dist / 2
+        return {"s": float(lead[0]), "t": float(lead[1]), "thumb.dl": -0.55 * shape.side * dist
+                * shape.side, "thumb.df": -0.83 * dist}
+
+    open_mm, closed_mm = float(rng.uniform(80.0, 110.0)), float(rng.uniform(22.0, 32.0))
+    tr = ctx.enter(centre - e * open_mm / 2, yaw, float(rng.uniform(35.0, 55.0)), EMPTY_S,
+                   {"thumb": (at(open_mm)["thumb.dl"], at(open_mm)["thumb.df"])})
+    for a_mm, b_mm in ((open_mm, closed_mm), (closed_mm, open_mm)):
+        tr.to(0.3, **at(a_mm))
+        tr.to(0.15, gap=0.0, **{"thumb.gap": 0.0}).hold(0.1)
+        tr.to(float(rng.uniform(0.6, 1.0)), **at(b_mm)).hold(0.1)
+        tr.to(0.15, gap=UP_MM, **{"thumb.gap": UP_MM})
+    ctx.leave(tr)
+    return Script(tr.end_s + 0.3, hands=[HandTrack(shape, ("index", "thumb"), tr)])
+
+
+def scene_cross(ctx: SceneContext) -> Script:
+    rng = ctx.rng
+    mid = ctx.spot(0.45, 0.55)
+    span = min(0.25 * ctx.mm_per_frac(), 220.0)
+    sep = float(rng.uniform(18.0, 30.0))
+    hands = []
+    # the two hands face each other (one from each side), each within 10 deg of straight
+    jitter = rng.uniform(-10.0, 10.0, 2)
+    for side, yaw, sign in ((1, ctx.base_yaw + jitter[0], 1.0),
+                            (-1, ctx.base_yaw + 180.0 + jitter[1], -1.0)):
+        start = mid + np.array([-sign * span / 2, sign * sep / 2])
+        end = mid + np.array([sign * span / 2, sign * sep / 2])
+        tr = ctx.enter(start, yaw, _pitch(rng), EMPTY_S)
+        tr.to(0.3, s=float(start[0]), t=float(start[1])).hold(0.2)
+        tr.to(0.15, gap=0.0).hold(0.15)
+        tr.to(span / (float(rng.uniform(0.15, 0.35)) * 1000.0), s=float(end[0]), t=float(end[1]))
+        tr.hold(0.15).to(0.15, gap=UP_MM)
+        ctx.leave(tr)
+        hands.append(HandTrack(ctx.hand(side), ("index",), tr))
+    return Script(max(h.track.end_s for h in hands) + 0.3, hands=hands)
+
+
+def scene_hover(ctx: SceneContext) -> Script:
+    rng = ctx.rng
+    tr = ctx.enter(ctx.spot(), _yaw(ctx), _pitch(rng), EMPTY_S)
+    for h in (50.0, 25.0, 10.0):
+        st = ctx.spot()
+        tr.to(0.4, s=float(st[0]), t=float(st[1]), gap=h).hold(1.0)
+    tr.to(0.2, gap=UP_MM)
+    ctx.leave(tr)
+    return Script(tr.end_s + 0.3, hands=[HandTrack(ctx.hand(), ("index",), tr)])
+
+
+LABEL_OBJECT, LABEL_REST_ARM, LABEL_BODY = 101, 102, 103
+
+
+def _object(ctx: SceneContext, st: np.ndarray, t_in: float, t_out: float | None) -> Prop:
+    """A box (a book or phone, ~ 150 x 80 x 25 mm) set down on the surface and maybe lifted."""
+    rng = ctx.rng
+    size = np.array([rng.uniform(120, 180), rng.uniform(60, 90), rng.uniform(15, 40)])
+    ang = float(rng.uniform(0, math.pi))
+    s = ctx.surface
+    n = s.normal(st[None])[0]
+    e1 = math.cos(ang) * s.u + math.sin(ang) * s.tangent_t(st[None])[0]
+    axes = np.stack([e1, np.cross(n, e1), n], 1)
+    base = s.point(st[None])[0]
+    # on a curved surface the box bottom corners would sink: rest it on the lowest corner
+    corners = [base + a * size[0] / 2 * e1 + b * size[1] / 2 * axes[:, 1]
+               for a in (-1, 1) for b in (-1, 1)]
+    sink = max(0.0, -min(float(s.height_mm(c)[0]) for c in corners))
+    end = math.inf if t_out is None else t_out
+
+    def build(t: float) -> list[Primitive]:
+        if t < t_in or t > end + 0.4:
+            return []
+        lift = 150.0 * max(0.0, 1.0 - (t - t_in) / 0.4, (t - end) / 0.4)
+        c = base + (size[2] / 2 + sink + lift) * n
+        return [Box(c, axes, size / 2, LABEL_OBJECT)]
+
+    return Prop(build)
+
+
+def _resting_arm(ctx: SceneContext, t_in: float, t_out: float) -> Prop:
+    """A forearm lying above the surface (bottom >= 40 mm up), sliding in from the right."""
+    rng = ctx.rng
+    st_in, st_edge = ctx.st_at(0.7, 0.75), ctx.st_at(1.0, 0.9)
+    if st_in is None or st_edge is None:
+        st_in, st_edge = ctx.spot(), ctx.spot()
+    radius = float(rng.uniform(25.0, 35.0))
+    height = float(rng.uniform(42.0, 60.0))
+    s = ctx.surface
+    along = st_edge - st_in
+    along = along / np.linalg.norm(along)
+
+    def build(t: float) -> list[Primitive]:
+        if not (t_in <= t <= t_out):
+            return []
+        slide = 600.0 * max(0.0, 1.0 - (t - t_in) / 0.5, 1.0 - (t_out - t) / 0.5)
+        a_st = st_in + along * slide
+        b_st = a_st + along * 600.0
+        pa, pb = s.point(np.stack([a_st, b_st]))
+        na, nb = s.normal(np.stack([a_st, b_st]))
+        return [Capsule(pa + (height + radius) * na, pb + (height + radius + 40.0) * nb,
+                        radius, LABEL_REST_ARM)]
+
+    return Prop(build)
+
+
+def _passing_body(ctx: SceneContext, t_in: float, dur_s: float) -> Prop:
+    """A person's torso between camera and surface, crossing the view left to right."""
+    z = 0.55 * float(ctx.surface.origin_mm[2])
+    rays = ctx.rays
+    half_w = z * rays.cx / rays.fx + 400.0
+    half_h = z * rays.cy / rays.fy
+
+    def build(t: float) -> list[Primitive]:
+        if not (t_in <= t <= t_in + dur_s):
+            return []
+        x = -half_w + 2 * half_w * (t - t_in) / dur_s
+        a = np.array([x, -half_h - 300.0, z])
+        b = np.array([x, half_h * 0.3, z + 100.0])
+        return [Capsule(a, b, 220.0, LABEL_BODY)]
+
+    return Prop(build)
+
+
+def scene_distractors(ctx: SceneContext) -> Script:
+    rng = ctx.rng
+    yaw, pitch = _yaw(ctx), _pitch(rng)
+    spots = [ctx.spot(0.2, 0.5) for _ in range(4)]
+    tr = ctx.enter(spots[0], yaw, pitch, EMPTY_S)
+    for st in spots:
+        _tap(tr, rng, st)
+    ctx.leave(tr)
+    t_obj = EMPTY_S + 1.0
+    t_arm = EMPTY_S + 2.0
+    t_body = tr.end_s + 0.2
+    obj_st = ctx.st_at(0.75, 0.3)
+    props = [
+        _object(ctx, obj_st if obj_st is not None else ctx.spot(), t_obj, None),
+        _resting_arm(ctx, t_arm, t_arm + 2.5),
+        _passing_body(ctx, t_body, 1.2),
+    ]
+    events = [("object_placed", t_obj + 0.4), ("arm_rest_start", t_arm),
+              ("arm_rest_end", t_arm + 2.5), ("body_pass_start", t_body),
+              ("body_pass_end", t_body + 1.2)]
+    return Script(t_body + 1.6, hands=[HandTrack(ctx.hand(), ("index",), tr)], props=props,
+                  events=events)
+
+
+def scene_object(ctx: SceneContext) -> Script:
+    rng = ctx.rng
+    t_in = EMPTY_S + 0.3
+    t_out = t_in + 0.4 + 3.0
+    obj_st = ctx.st_at(0.3, 0.4)
+    prop = _object(ctx, obj_st if obj_st is not None else ctx.spot(), t_in, t_out)
+    spots = [ctx.spot(0.55, 0.8) for _ in range(3)]
+    tr = ctx.enter(spots[0], _yaw(ctx), _pitch(rng), t_in + 0.6)
+    for st in spots:
+        _tap(tr, rng, st)
+    ctx.leave(tr)
+    events = [("object_placed", t_in + 0.4), ("object_removed", t_out)]
+    return Script(max(t_out + 1.5, tr.end_s + 0.3),
+                  hands=[HandTrack(ctx.hand(), ("index",), tr)], props=[prop], events=events)
+
+
+def scene_drift(ctx: SceneContext) -> Script:
+    rng = ctx.rng
+    tr = ctx.enter(ctx.spot(), _yaw(ctx), _pitch(rng), EMPTY_S + 0.5)
+    for st in [ctx.spot(0.2, 0.8) for _ in range(5)]:
+        _tap(tr, rng, st)
+    ctx.leave(tr)
+    dur = tr.end_s + 0.5
+    total_mm = float(rng.uniform(3.0, 5.0))
+
+    def drift(t: float) -> float:
+        return -total_mm * max(0.0, t - EMPTY_S) / (dur - EMPTY_S)
+
+    return Script(dur, hands=[HandTrack(ctx.hand(), ("index",), tr)],
+                  events=[("drift_start", EMPTY_S)], drift=drift)
+
+
+def scene_bump(ctx: SceneContext) -> Script:
+    rng = ctx.rng
+    tr = ctx.enter(ctx.spot(), _yaw(ctx), _pitch(rng), EMPTY_S)
+    spots = [ctx.spot(0.2, 0.8) for _ in range(5)]
+    for st in spots[:2]:
+        _tap(tr, rng, st)
+    t_bump = tr.end_s + 0.3
+    tr.hold(0.6)
+    for st in spots[2:]:
+        _tap(tr, rng, st)
+    ctx.leave(tr)
+    sign = rng.choice([-1.0, 1.0], 3)
+    deg = (float(sign[0] * rng.uniform(0.4, 0.8)), float(sign[1] * rng.uniform(0.3, 0.6)),
+           float(sign[2] * rng.uniform(0.0, 0.5)))
+    return Script(tr.end_s + 0.3, hands=[HandTrack(ctx.hand(), ("index",), tr)],
+                  events=[("bump", t_bump)], bump_s=t_bump, bump_deg_xyz=deg)
+
+
+def scene_hold(ctx: SceneContext) -> Script:
+    rng = ctx.rng
+    st = ctx.spot()
+    tr = ctx.enter(st, _yaw(ctx), _pitch(rng), EMPTY_S)
+    tr.to(0.15, gap=0.0).hold(10.0).to(0.15, gap=UP_MM)
+    ctx.leave(tr)
+    return Script(tr.end_s + 0.3, hands=[HandTrack(ctx.hand(), ("index",), tr)])
+
+
+SCENE_BUILDERS: dict[str, Callable[[SceneContext], Script]] = {
+    "taps": scene_taps,
+    "drags": scene_drags,
+    "multitouch": scene_multitouch,
+    "pinch": scene_pinch,
+    "cross": scene_cross,
+    "hover": scene_hover,
+    "distractors": scene_distractors,
+    "object": scene_object,
+    "drift": scene_drift,
+    "bump": scene_bump,
+    "hold": scene_hold,
+}
+
+SCENES: tuple[str, ...] = tuple(SCENE_BUILDERS)
+
+
+def build_script(scene: str, ctx: SceneContext) -> Script:
+    """The script of ``scene``; ConfigError listing the valid names otherwise."""
+    try:
+        builder = SCENE_BUILDERS[scene]
+    except KeyError:
+        raise ConfigError(f"unknown scene {scene!r}; use one of {', '.join(SCENES)}") from None
+    return builder(ctx)

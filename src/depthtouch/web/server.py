@@ -1,0 +1,482 @@
+"""The local web server: static page, WebSocket event stream and the calibration endpoint.
+
+:class:`WebServer` runs aiohttp in a background thread with its own asyncio loop, so any
+processing loop can use it::
+
+    server = WebServer("127.0.0.1", 8765)
+    server.start()                      # binds; OutputError if the port is taken
+    server.attach_pipeline(pipeline)    # optional: ms per frame and "learning" in the status
+    for frame in source.frames():
+        events = pipeline.process(frame)
+        server.sink.send(frame, events)           # never blocks
+        if server.height_due(frame.timestamp_s):  # a few times per second, only with clients
+            server.publish_height(frame, pipeline.height_map_mm(frame))
+    server.stop()
+
+Routes: ``GET /`` and ``GET /<name>`` serve only the files of ``web/static`` (read once at
+construction; any other name is 404, so no path can leave the folder); ``GET /ws`` upgrades to a
+WebSocket when the Origin header is the server's own (or absent, as from non-browser clients);
+``POST /api/calibration`` fits and saves a screen calibration from the page's calibration flow.
+
+WebSocket messages (server to page): text JSON ``hello`` (on connect), ``frame`` (every
+processed frame, see :mod:`depthtouch.outputs.websocket`), ``meta`` (resolution changed),
+``calibration`` (a calibration was loaded or fitted), ``reset`` (a looped recording restarted),
+``info`` (a line for the page); binary: a JPEG of the colour height map.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import ipaddress
+import json
+import logging
+import threading
+from collections.abc import Iterable, Sequence
+from pathlib import Path
+from typing import Any
+from urllib.parse import urlsplit
+
+import cv2
+import numpy as np
+from aiohttp import WSMsgType, web
+
+from ..errors import CalibrationError, DepthTouchError, OutputError
+from ..outputs.websocket import BINARY, TEXT, Broadcaster, WebSocketSink, encode_message
+from ..types import Frame, TouchEvent
+
+log = logging.getLogger(__name__)
+
+STATIC_DIR = Path(__file__).parent / "static"
+_CONTENT_TYPES = {
+    ".html": "text/html",
+    ".js": "text/javascript",
+    ".css": "text/css",
+    ".png": "image/png",
+    ".svg": "image/svg+xml",
+}
+_MAX_PAIRS = 64
+
+
+def colorize_height(
+    height_mm: np.ndarray, lo_mm: float = 3.0, hi_mm: float = 80.0
+) -> np.ndarray:
+    """Colour view of a height map: uint8 BGR (H, W, 3), turbo colour map over [lo_mm, hi_mm].
+
+    Heights are clipped to the range, so with the default lo_mm = 3 the sensor noise of the empty
+    surface stays one flat colour; NaN (no surface or no depth) is dark grey. The input is not
+    modified.
+    """
+    if height_mm.ndim != 2:
+        raise ValueError(f"height_mm: expected shape (H, W), got {height_mm.shape}")
+    if not hi_mm > lo_mm:
+        raise ValueError(f"height range [{lo_mm}, {hi_mm}] is empty; give lo_mm < hi_mm")
+    h = np.asarray(height_mm, dtype=np.float32)
+    invalid = ~np.isfinite(h)
+    scaled = (np.nan_to_num(h, nan=lo_mm) - lo_mm) * (255.0 / (hi_mm - lo_mm))
+    gray = np.clip(scaled, 0.0, 255.0).astype(np.uint8)
+    bgr = cv2.applyColorMap(gray, cv2.COLORMAP_TURBO)
+    bgr[invalid] = 40
+    return bgr
+
+
+def encode_jpeg(bgr: np.ndarray, quality: int = 80) -> bytes:
+    """JPEG bytes of a BGR uint8 image (quality 1..100)."""
+    ok, buf = cv2.imencode(".jpg", bgr, [cv2.IMWRITE_JPEG_QUALITY, int(quality)])
+    if not ok:  # pragma: no cover - OpenCV only fails on empty images
+        raise OutputError("cannot encode the height view as JPEG; check the image size")
+    return bytes(buf)
+
+
+def _load_static(folder: Path) -> dict[str, tuple[bytes, str]]:
+    files: dict[str, tuple[bytes, str]] = {}
+    if not folder.is_dir():
+        raise OutputError(f"{folder}: web files missing; reinstall depthtouch with its web files")
+    for p in sorted(folder.iterdir()):
+        ctype = _CONTENT_TYPES.get(p.suffix.lower())
+        if p.is_file() and ctype is not None:
+            files[p.name] = (p.read_bytes(), ctype)
+    if "index.html" not in files:
+        raise OutputError(f"{folder}: no index.html; reinstall depthtouch with its web files")
+    return files
+
+
+def _is_ip_literal(hostname: str) -> bool:
+    try:
+        ipaddress.ip_address(hostname.strip("[]"))
+    except ValueError:
+        return False
+    return True
+
+
+class WebServer:
+    """Local web page + WebSocket stream, served from a background thread.
+
+    host: interface to bind (default "127.0.0.1"; "0.0.0.0" exposes it to the network).
+    port: TCP port (default 8765; 0 picks a free one, see :attr:`port` after :meth:`start`).
+    calibration: a loaded Calibration (adds sx, sy to the events; the pad draws with them).
+    calibration_out: where the page's calibration flow saves its fit (default calibration.json).
+    pad_wh: drawing-pad size in screen pixels; calibration targets are placed in it
+        (default (960, 540)).
+    height_hz: most height-map images per second (default 5, range (0, 10]).
+    height_range_mm: heights mapped to the colour scale (default (3, 80): surface noise below
+        3 mm is flat, fingers in the touch band are blue to green, hands are red).
+    queue_size: messages buffered per client before it skips frames (default 8).
+    allowed_origins: extra browser origins allowed to connect (e.g. "http://myapp.local:8000").
+    source_name: shown on the page.
+    """
+
+    def __init__(
+        self,
+        host: str = "127.0.0.1",
+        port: int = 8765,
+        *,
+        calibration: Any | None = None,
+        calibration_out: str | Path = "calibration.json",
+        pad_wh: tuple[int, int] = (960, 540),
+        height_hz: float = 5.0,
+        height_range_mm: tuple[float, float] = (3.0, 80.0),
+        queue_size: int = 8,
+        allowed_origins: Iterable[str] = (),
+        source_name: str = "",
+        static_dir: Path = STATIC_DIR,
+    ) -> None:
+        if not 0 <= port <= 65535:
+            raise OutputError(f"port {port} is out of range; give 0..65535 (0 = any free port)")
+        if not 0.0 < height_hz <= 10.0:
+            raise OutputError(f"height_hz = {height_hz} is out of range; allowed (0, 10]")
+        if pad_wh[0] < 16 or pad_wh[1] < 16:
+            raise OutputError(f"pad_wh = {pad_wh} is too small; give at least 16 x 16 pixels")
+        self.host = host
+        self._port = port
+        self.calibration_out = Path(calibration_out)
+        self.pad_wh = (int(pad_wh[0]), int(pad_wh[1]))
+        self.height_hz = height_hz
+        self.height_range_mm = height_range_mm
+        self.allowed_origins = {o.rstrip("/") for o in allowed_origins}
+        self.source_name = source_name
+        self._static = _load_static(static_dir)
+        self.broadcaster = Broadcaster(queue_size=queue_size)
+        self.sink = WebSocketSink(self.broadcaster)
+        self.sink.on_resolution = self.set_resolution
+        self.resolution_wh: tuple[int, int] | None = None
+        self.calibration: Any | None = None
+        self.calibration_error_px: float | None = None
+        if calibration is not None:
+            self.set_calibration(calibration)
+        self._last_height_t: float | None = None
+        self._loop: asyncio.AbstractEventLoop | None = None
+        self._thread: threading.Thread | None = None
+        self._ready = threading.Event()
+        self._start_error: BaseException | None = None
+        self._runner: web.AppRunner | None = None
+
+    # --- lifecycle ------------------------------------------------------------------------------
+    @property
+    def port(self) -> int:
+        """The bound port (the chosen one when constructed with port 0 and started)."""
+        return self._port
+
+    @property
+    def url(self) -> str:
+        host = "127.0.0.1" if self.host in ("0.0.0.0", "") else self.host
+        if ":" in host:
+            host = f"[{host}]"
+        return f"http://{host}:{self.port}/"
+
+    def start(self) -> WebServer:
+        """Bind and serve in a background thread; OutputError when the address cannot be bound."""
+        if self._thread is not None:
+            return self
+        self._thread = threading.Thread(target=self._run, name="depthtouch-web", daemon=True)
+        self._thread.start()
+        if not self._ready.wait(15.0):
+            raise OutputError("the web server did not start within 15 s; check the host and port")
+        if self._start_error is not None:
+            self._thread.join(2.0)
+            self._thread = None
+            e = self._start_error
+            raise OutputError(
+                f"cannot serve on {self.host}:{self._port} ({getattr(e, 'strerror', None) or e}); "
+                "choose another --port or --host"
+            ) from e
+        return self
+
+    def stop(self) -> None:
+        """Close all clients and the listening socket; safe to call twice."""
+        loop, thread = self._loop, self._thread
+        if loop is None or thread is None:
+            return
+        if not loop.is_closed():
+            loop.call_soon_threadsafe(loop.stop)
+        thread.join(10.0)
+        self._thread = None
+
+    def __enter__(self) -> WebServer:
+        return self.start()
+
+    def __exit__(self, *exc: object) -> None:
+        self.stop()
+
+    def _run(self) -> None:
+        loop = asyncio.new_event_loop()
+        asyncio.set_event_loop(loop)
+        self._loop = loop
+        try:
+            loop.run_until_complete(self._startup())
+        except Exception as e:  # OSError (port taken, unknown host) or a bad host value
+            self._start_error = e
+            loop.run_until_complete(self._cleanup())
+            loop.close()
+            self._ready.set()
+            return
+        self.broadcaster.bind(loop)
+        self._ready.set()
+        try:
+            loop.run_forever()
+        finally:
+            self.broadcaster.loop = None
+            loop.run_until_complete(self.broadcaster.close_all())
+            loop.run_until_complete(self._cleanup())
+            loop.close()
+
+    async def _startup(self) -> None:
+        app = web.Application(client_max_size=256 * 1024)
+        app.router.add_get("/", self._index)
+        app.router.add_get("/ws", self._ws)
+        app.router.add_post("/api/calibration", self._post_calibration)
+        app.router.add_get("/{name}", self._file)
+        self._runner = web.AppRunner(app, access_log=None, shutdown_timeout=1.0)
+        await self._runner.setup()
+        site = web.TCPSite(self._runner, self.host, self._port)
+        await site.start()
+        addresses = self._runner.addresses  # the bound socket tells the port chosen for 0
+        if addresses:
+            self._port = int(addresses[0][1])
+
+    async def _cleanup(self) -> None:
+        if self._runner is not None:
+            await self._runner.cleanup()
+            self._runner = None
+
+    # --- publishing (any thread) ----------------------------------------------------------------
+    def attach_pipeline(self, pipeline: Any) -> None:
+        """Read ``last_timing_ms["total"]`` and ``learning`` of this object for the status line."""
+        self.sink.timing = pipeline
+
+    def set_resolution(self, resolution_wh: tuple[int, int]) -> None:
+        """Tell pages the depth-image size (sent automatically on the first frame)."""
+        self.resolution_wh = (int(resolution_wh[0]), int(resolution_wh[1]))
+        self.notify({"type": "meta", "resolution_wh": list(self.resolution_wh)})
+
+    def set_calibration(self, calibration: Any | None, error_px: float | None = None) -> None:
+        """Use this calibration for sx, sy from now on and tell the pages."""
+        self.calibration = calibration
+        self.sink.calibration = calibration
+        if error_px is None and calibration is not None:
+            err = getattr(calibration, "reprojection_error_px", None)
+            error_px = float(err) if err is not None else None
+        self.calibration_error_px = error_px
+        self.notify({"type": "calibration", **self._calibration_info()})
+
+    def notify(self, message: dict[str, Any]) -> None:
+        """Send a control message (JSON object with a ``type``) to every page."""
+        self.broadcaster.post(TEXT, encode_message(message))
+
+    def height_due(self, t_s: float) -> bool:
+        """True when a height image should be sent for a frame at ``t_s`` (rate limit, clients)."""
+        if self.broadcaster.n_clients == 0:
+            return False
+        last = self._last_height_t
+        return last is None or t_s < last or t_s - last >= 1.0 / self.height_hz
+
+    def publish_height(self, frame: Frame, height_mm: np.ndarray) -> bool:
+        """Send the colour height map of ``frame`` if due; returns whether it was sent."""
+        if not self.height_due(frame.timestamp_s):
+            return False
+        self._last_height_t = frame.timestamp_s
+        bgr = colorize_height(height_mm, *self.height_range_mm)
+        self.broadcaster.post(BINARY, encode_jpeg(bgr))
+        return True
+
+    def inject(
+        self,
+        events: Sequence[TouchEvent],
+        frame_index: int | None = None,
+        t_s: float | None = None,
+    ) -> str:
+        """Broadcast touch events as if a frame produced them (tests and demos; no HTTP route)."""
+        idx = frame_index if frame_index is not None else (events[0].frame if events else 0)
+        t = t_s if t_s is not None else (events[0].t if events else 0.0)
+        return self.sink.publish(idx, t, events)
+
+    # --- HTTP handlers (loop thread) ------------------------------------------------------------
+    def _own_origins(self, request: web.Request) -> set[str]:
+        port = self.port
+        hosts = {"127.0.0.1", "localhost", "[::1]"}
+        if self.host not in ("", "0.0.0.0", "::"):
+            hosts.add(f"[{self.host}]" if ":" in self.host else self.host)
+        origins = {f"http://{h}:{port}" for h in hosts} | self.allowed_origins
+        # Exposed on all interfaces: the page is reached through some address of this machine;
+        # accept it when the browser used an IP literal (a DNS name could be rebound).
+        req_host = urlsplit(f"http://{request.host}").hostname or ""
+        if self.host in ("", "0.0.0.0", "::") and _is_ip_literal(req_host):
+            origins.add(f"http://{request.host}")
+        return origins
+
+    def _origin_ok(self, request: web.Request) -> bool:
+        origin = request.headers.get("Origin")
+        if origin is None:
+            return True  # not a browser: browsers always send Origin on WebSocket and POST
+        return origin.rstrip("/") in self._own_origins(request)
+
+    def _headers(self, request: web.Request, ctype: str) -> dict[str, str]:
+        h = {
+            "Cache-Control": "no-store",
+            "X-Content-Type-Options": "nosniff",
+            "Referrer-Policy": "no-referrer",
+        }
+        if ctype == "text/html":
+            h["Content-Security-Policy"] = (
+                "default-src 'self'; img-src 'self' blob: data:; "
+                f"connect-src 'self' ws://{request.host}; frame-ancestors 'none'"
+            )
+        return h
+
+    async def _index(self, request: web.Request) -> web.Response:
+        return self._serve("index.html", request)
+
+    async def _file(self, request: web.Request) -> web.Response:
+        return self._serve(request.match_info["name"], request)
+
+    def _serve(self, name: str, request: web.Request) -> web.Response:
+        item = self._static.get(name)
+        if item is None:
+            return web.Response(status=404, text="not found\n")
+        body, ctype = item
+        charset = "utf-8" if ctype.startswith("text/") else None
+        return web.Response(
+            body=body, content_type=ctype, charset=charset, headers=self._headers(request, ctype)
+        )
+
+    def _calibration_info(self) -> dict[str, Any]:
+        cal = self.calibration
+        screen_wh = getattr(cal, "screen_wh", None) if cal is not None else None
+        return {
+            "loaded": cal is not None,
+            "screen_wh": list(screen_wh) if screen_wh is not None else list(self.pad_wh),
+            "error_px": self.calibration_error_px,
+        }
+
+    def _hello(self) -> dict[str, Any]:
+        targets: list[list[float]] | None
+        try:
+            from ..calibration import default_targets
+
+            targets = np.asarray(default_targets(self.pad_wh, n=4), dtype=float).tolist()
+        except ImportError:
+            targets = None
+        return {
+            "type": "hello",
+            "source": self.source_name,
+            "resolution_wh": list(self.resolution_wh) if self.resolution_wh else None,
+            "pad_wh": list(self.pad_wh),
+            "targets": targets,
+            "calibration": self._calibration_info(),
+            "calibration_out": str(self.calibration_out),
+        }
+
+    async def _ws(self, request: web.Request) -> web.StreamResponse:
+        if not self._origin_ok(request):
+            log.warning("refused a WebSocket from origin %s", request.headers.get("Origin"))
+            return web.Response(status=403, text="origin not allowed\n")
+        ws = web.WebSocketResponse(heartbeat=15.0, max_msg_size=64 * 1024)
+        await ws.prepare(request)
+        transport = request.transport
+        self.broadcaster.add(ws, abort=transport.abort if transport is not None else None)
+        self.broadcaster.send_to(ws, TEXT, encode_message(self._hello()))
+        try:
+            async for msg in ws:
+                if msg.type == WSMsgType.ERROR:
+                    break
+                # the page sends nothing the server needs; anything else is ignored
+        finally:
+            self.broadcaster.remove(ws)
+        return ws
+
+    async def _post_calibration(self, request: web.Request) -> web.Response:
+        if not self._origin_ok(request):
+            return web.json_response({"ok": False, "error": "origin not allowed"}, status=403)
+        if request.content_type != "application/json":
+            return web.json_response(
+                {"ok": False, "error": "send the calibration pairs as application/json"},
+                status=415,
+            )
+        try:
+            payload = await request.json()
+            depth_xy, screen_xy, screen_wh = parse_calibration_request(payload)
+            loop = asyncio.get_running_loop()
+            cal = await loop.run_in_executor(
+                None, fit_and_save, depth_xy, screen_xy, screen_wh, self.calibration_out
+            )
+        except (json.JSONDecodeError, UnicodeDecodeError):
+            return web.json_response({"ok": False, "error": "the body is not JSON"}, status=400)
+        except (DepthTouchError, ValueError) as e:
+            return web.json_response({"ok": False, "error": str(e)}, status=400)
+        except OSError as e:
+            return web.json_response(
+                {"ok": False, "error": f"cannot save {self.calibration_out}: {e.strerror or e}; "
+                 "check --calibration-out"},
+                status=500,
+            )
+        err = float(cal.reprojection_error_px)
+        self.set_calibration(cal, err)
+        return web.json_response(
+            {"ok": True, "error_px": err, "path": str(self.calibration_out)}
+        )
+
+
+def parse_calibration_request(
+    payload: Any,
+) -> tuple[np.ndarray, np.ndarray, tuple[int, int]]:
+    """Validate ``{"screen_wh": [w, h], "pairs": [{"depth": [x, y], "screen": [x, y]}, ...]}``.
+
+    Returns depth_xy (N, 2), screen_xy (N, 2) float64 and screen_wh; CalibrationError naming the
+    problem otherwise (at least 4 pairs, finite numbers).
+    """
+    if not isinstance(payload, dict):
+        raise CalibrationError("calibration request must be a JSON object with pairs, screen_wh")
+    wh = payload.get("screen_wh")
+    if (
+        not isinstance(wh, list) or len(wh) != 2
+        or not all(isinstance(v, (int, float)) and not isinstance(v, bool) and v > 0 for v in wh)
+    ):
+        raise CalibrationError(f"screen_wh = {wh!r} must be [width, height] in positive pixels")
+    pairs = payload.get("pairs")
+    if not isinstance(pairs, list) or not 4 <= len(pairs) <= _MAX_PAIRS:
+        n = len(pairs) if isinstance(pairs, list) else pairs
+        raise CalibrationError(
+            f"calibration needs 4..{_MAX_PAIRS} pairs, got {n!r}; touch all the targets"
+        )
+    try:
+        depth_xy = np.array([p["depth"] for p in pairs], dtype=np.float64)
+        screen_xy = np.array([p["screen"] for p in pairs], dtype=np.float64)
+    except (TypeError, KeyError, ValueError):
+        raise CalibrationError(
+            'each calibration pair must be {"depth": [x, y], "screen": [x, y]} numbers'
+        ) from None
+    if depth_xy.shape != (len(pairs), 2) or screen_xy.shape != (len(pairs), 2):
+        raise CalibrationError('each calibration pair must be {"depth": [x, y], "screen": [x, y]}')
+    if not (np.all(np.isfinite(depth_xy)) and np.all(np.isfinite(screen_xy))):
+        raise CalibrationError("calibration pairs contain NaN or infinity; touch the targets again")
+    return depth_xy, screen_xy, (int(round(wh[0])), int(round(wh[1])))
+
+
+def fit_and_save(
+    depth_xy: np.ndarray, screen_xy: np.ndarray, screen_wh: tuple[int, int], path: Path
+) -> Any:
+    """Fit a calibration from touched targets and save it; returns the Calibration."""
+    from ..calibration import fit_calibration, save_calibration
+
+    cal = fit_calibration(depth_xy, screen_xy, screen_wh)
+    save_calibration(cal, path)
+    return cal
