@@ -26,7 +26,7 @@ lint: $(STAMP)
 	$(BIN)/mypy
 
 soak: $(STAMP)
-	$(BIN)/python -m pytest -q -m slow tests/test_soak.py --soak-frames 100000
+	SOAK_FRAMES=100000 $(BIN)/python -m pytest -q -s -m slow tests/test_soak.py
 
 clean:
 	rm -rf $(VENV) demo-report .pytest_cache .mypy_cache .ruff_cache

@@ -224,6 +224,7 @@ def test_mailbox_keeps_only_the_newest():
         ({"motion_fraction": 0.0}, "live.motion_fraction"),
         ({"backoff_initial_s": 2.0, "backoff_max_s": 1.0}, "live.backoff_max_s"),
         ({"status_hz": 0.0}, "live.status_hz"),
+        ({"learn_max_hz": 0.0}, "live.learn_max_hz"),
     ],
 )
 def test_live_config_errors(kw, match):  # type: ignore[no-untyped-def]
@@ -291,6 +292,14 @@ def test_countdown_then_learning_then_touches():
     assert left[0] == 0.2 and min(left) < 0.2 and left == sorted(left, reverse=True)
     assert len(sink.frames) == 40  # sinks see every processed frame, also while waiting
     assert src.closed and sink.flushes >= 1
+
+
+def test_a_90_hz_camera_learns_from_30_frames_per_second():
+    src, sink = stepped(scene(30, fps=90.0))
+    pipe = FakePipeline(learn_frames=5)
+    res = LiveLoop(lambda: src, pipe, [sink], config=LiveConfig(countdown_s=0)).run()
+    assert pipe.learned_from == [0, 3, 6, 9, 12] and res.processed == 30
+    assert [f.index for f in pipe.seen[5:]] == list(range(13, 30))  # then every frame
 
 
 def test_motion_before_and_during_learning_restarts_it():

@@ -11,6 +11,7 @@ from __future__ import annotations
 import io
 import json
 import math
+import os
 import tempfile
 import warnings
 import zipfile
@@ -42,7 +43,9 @@ from depthtouch.types import Frame, TouchEvent
 
 T = TypeVar("T")
 
-SETTINGS = settings(max_examples=60, deadline=None,
+# modest by default (the file runs in seconds); DEPTHTOUCH_FUZZ_EXAMPLES=1000 searches harder
+SETTINGS = settings(max_examples=int(os.environ.get("DEPTHTOUCH_FUZZ_EXAMPLES", "60")),
+                    deadline=None,
                     suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
 K_OK = np.array([[600.0, 0, 15.5], [0, 600.0, 11.5], [0, 0, 1]])
 

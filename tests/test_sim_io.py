@@ -54,6 +54,7 @@ def test_write_npz_and_truth_round_trip(tmp_path: Path, small_rec: Any) -> None:
     write_recording(small_rec, tmp_path / "taps.npz", tmp_path / "taps.truth.json")
     src = NpzSource(tmp_path / "taps.npz")
     assert np.array_equal(src.depth, small_rec.depth)
+    assert src.K is not None
     np.testing.assert_allclose(src.K, small_rec.K)
     truth = load_truth(tmp_path / "taps.truth.json")
     assert truth == json.loads(json.dumps(small_rec.truth))

@@ -72,6 +72,9 @@ class LiveConfig:
     status_hz: status-line updates per second (default 4, range (0, 60]).
     flush_interval_s: sinks with ``flush()`` (the events file) are flushed this often
         (default 1.0 s, range (0, 3600]).
+    learn_max_hz: the surface is learned from at most this many frames per second (default 30,
+        range (0, 1000]); a 90 Hz camera would otherwise triple the frames kept and the time
+        the final surface computation blocks the loop, for no better surface.
     """
 
     countdown_s: float = 3.0
@@ -81,6 +84,7 @@ class LiveConfig:
     backoff_max_s: float = 8.0
     status_hz: float = 4.0
     flush_interval_s: float = 1.0
+    learn_max_hz: float = 30.0
 
     def __post_init__(self) -> None:
         checks = (
@@ -91,6 +95,7 @@ class LiveConfig:
             ("backoff_max_s", self.backoff_max_s, self.backoff_initial_s, 600.0, False),
             ("status_hz", self.status_hz, 0.0, 60.0, True),
             ("flush_interval_s", self.flush_interval_s, 0.0, 3600.0, True),
+            ("learn_max_hz", self.learn_max_hz, 0.0, 1000.0, True),
         )
         for name, v, lo, hi, lo_open in checks:
             if not (v > lo if lo_open else v >= lo) or not v <= hi:
@@ -338,6 +343,7 @@ class LiveLoop:
         self._last_status_key: tuple[str, str] | None = None
         self._last_flush_s: float | None = None
         self._countdown_left_s = self.config.countdown_s
+        self._last_learn_t: float | None = None
         if self.phase == "learning":
             self.phase = "waiting" if self.config.countdown_s > 0 else "learning"
 
@@ -428,6 +434,7 @@ class LiveLoop:
             self.result.reconnects += 1
             if self.pipeline.learning:  # learning restarts on the new stream
                 self.pipeline.reset()
+                self._last_learn_t = None
                 self.phase = "waiting" if self.config.countdown_s > 0 else "learning"
             else:
                 self.phase = "running"
@@ -472,10 +479,11 @@ class LiveLoop:
             self.gate.update(frame)
             if cfg.countdown_s > 0 and self.gate.moved:
                 self.pipeline.reset()
+                self._last_learn_t = None
                 self.result.learn_restarts += 1
                 self.phase = "waiting"
                 self.message = "something moved while learning: clear the surface"
-            else:
+            elif self._learn_due(frame):
                 events = self._process(frame)
                 if not self.pipeline.learning:
                     self.phase, self.message = "running", "surface learned: touch away"
@@ -498,6 +506,15 @@ class LiveLoop:
         self._times.append(t1)
         self._flush()
         self._emit(t1)
+
+    def _learn_due(self, frame: Frame) -> bool:
+        """Whether this frame goes to the surface learner (at most ``learn_max_hz``)."""
+        last = self._last_learn_t
+        # 5 % slack: a 30 Hz camera's intervals jitter around 1/30 s
+        if last is not None and frame.timestamp_s - last < 0.95 / self.config.learn_max_hz:
+            return False
+        self._last_learn_t = frame.timestamp_s
+        return True
 
     def _process(self, frame: Frame) -> list[TouchEvent]:
         try:

@@ -120,8 +120,18 @@ def _extremity_point(
     # The finger's shape near the tip: the region grown into raised pixels nearby on the
     # smoothed map (noise averaged over 9 px): the tip cap that Tl cut away, and the finger body
     # that rises above Tu behind a steep tip.
-    raised = hs > np.maximum(tl_mm * np.float32(1 / 3), np.float32(2.0))
-    finger = cv2.bitwise_or(reg, cv2.bitwise_and(raised.view(np.uint8), cv2.dilate(reg, k_reach)))
+    # Only what is connected to the region counts: the noise of stereo cameras is spatially
+    # correlated, so a 3x3 mean does not remove blobs of it next to the tip.
+    raised = hs > np.maximum(tl_mm * np.float32(0.5), np.float32(2.0))
+    grown = cv2.bitwise_or(reg, cv2.bitwise_and(raised.view(np.uint8), cv2.dilate(reg, k_reach)))
+    n_lab, labels = cv2.connectedComponents(grown, connectivity=4)
+    if n_lab > 2:
+        keep = np.zeros(n_lab, np.uint8)
+        keep[np.unique(labels[reg > 0])] = 1
+        keep[0] = 0
+        finger = keep[labels]
+    else:
+        finger = grown
     _, cx, cy = _centroid(reg)
     dx, dy = cx - hand[0], cy - hand[1]
     norm = float(np.hypot(dx, dy))
@@ -133,13 +143,25 @@ def _extremity_point(
     py = pts[:, 1] - hand[1]
     s = px * dx + py * dy
     lat = py * dx - px * dy
-    s_front = float(s.max()) + 0.5
+    # Front of the tip: the farthest 1-px slice along the finger that is at least half a tip
+    # radius wide (a one-pixel noise spur in front of the tip is not the tip).
+    s0 = float(s.min())
+    counts = np.bincount((s - s0).astype(np.intp))
+    wide = np.flatnonzero(counts >= max(1.0, 0.5 * r0))
+    s_front = s0 + float(wide[-1] if wide.size else counts.size - 1) + 1.0
     # finger width in a slab behind the tip cap -> radius (hands differ)
     n_slab = np.count_nonzero((s > s_front - 3.0 * r0) & (s <= s_front - r0))
     r = float(np.clip(n_slab / (4.0 * r0), 0.6 * r0, 1.5 * r0))
     cap = s > s_front - 2.0 * r
-    s_c = s_front - r
     l_c = float(lat[cap].mean())
+    # The contact is under the centre of the rounded tip. Its position along the finger comes
+    # from an area, not an edge: pixels of the tip ahead of the centre fill half a disc of radius
+    # r, so the centre is where the count from the front reaches pi r^2 / 2 (sub-pixel, and a
+    # stray pixel moves it by 1 / (2 r) px instead of 1 px).
+    near = np.abs(lat - l_c) <= r + 0.5
+    ahead = np.sort(s[near & (s > s_front - 3.0 * r)])[::-1]
+    k = int(round(np.pi * r * r / 2.0))
+    s_c = float(ahead[min(k, ahead.size - 1)]) if ahead.size else s_front - r
     x = hand[0] + s_c * dx - l_c * dy
     y = hand[1] + s_c * dy + l_c * dx
     cap_h = hs[pts[cap, 1].astype(np.intp), pts[cap, 0].astype(np.intp)]

@@ -130,71 +130,76 @@ def get_profile(name: str) -> CameraProfile:
 class NoiseModel:
     """Turns noise-free depth (float32 mm, 0 = no surface) into a sensor frame (uint16 mm).
 
-    Holds the per-recording state: the fixed bias pattern and pools of Gaussian samples. Each
-    frame's temporal noise is two pool slices at random offsets (a view, no copy) summed, so that
-    a pixel's samples over time are independent draws from ~10^7 values at a fraction of the
-    cost of drawing a fresh field (4-5 ms for 848x480 on this machine).
+    Holds the per-recording state: the fixed bias pattern, pools of Gaussian samples and the
+    maps of the static scene (:meth:`set_static`). A frame's temporal noise is the sum of two
+    pool slices at random offsets (views, no copy): a white pool, and either a second white pool
+    or, for profiles with spatially correlated noise, a pool blurred once at start (its slices
+    start on a row so the blur's 2-D structure survives). A pixel's samples over time are thus
+    independent draws from ~10^7 values, at a fraction of the cost of drawing a fresh field
+    (4-5 ms for 848x480 on this machine).
     """
 
-    _POOL_FACTOR = 6
+    _POOL_FRAMES = 6
 
     def __init__(self, profile: CameraProfile, rng: np.random.Generator) -> None:
         self.profile = profile
         self.rng = rng
         w, h = profile.resolution_wh
         self.shape = (h, w)
-        n = h * w
-        self._n = n
-        self._pools = [
-            rng.standard_normal(n * self._POOL_FACTOR, dtype=np.float32) for _ in range(2)
-        ]
-        self._mix: tuple[float, float, int] | None = None
-        if profile.correlated_fraction > 0:
-            size = int(2 * round(3 * profile.correlation_px) + 1)
-            k1 = cv2.getGaussianKernel(size, profile.correlation_px, cv2.CV_64F)
-            k2 = k1 @ k1.T
-            s2 = float(np.sum(k2 * k2))
-            kc = float(k2[size // 2, size // 2])
-            a = np.sqrt(1.0 - profile.correlated_fraction)
-            b = np.sqrt(profile.correlated_fraction / s2)
-            norm = 1.0 / np.sqrt(a * a + b * b * s2 + 2.0 * a * b * kc)
-            self._mix = (float(a * norm), float(b * norm), size)
-        bias = self._correlate(rng.standard_normal(self.shape, dtype=np.float32))
+        self._n = h * w
+        pool_shape = (h * self._POOL_FRAMES, w)
+        self._white = rng.standard_normal(pool_shape, dtype=np.float32).reshape(-1)
+        second = rng.standard_normal(pool_shape, dtype=np.float32)
+        rho = profile.correlated_fraction
+        if rho > 0:
+            # unit-variance blurred field carries rho of the variance, white the rest
+            self._second = self._blur_unit(second).reshape(-1)
+            self._weights = (np.float32(np.sqrt(1.0 - rho)), np.float32(np.sqrt(rho)))
+        else:
+            self._second = second.reshape(-1)
+            self._weights = (np.float32(np.sqrt(0.5)), np.float32(np.sqrt(0.5)))
+        bias = rng.standard_normal(self.shape, dtype=np.float32)
+        if rho > 0:
+            a, b = self._weights
+            bias = a * bias + b * self._blur_unit(rng.standard_normal(self.shape,
+                                                                      dtype=np.float32))
         self.bias = bias * np.float32(profile.bias_fraction)
-        # column index of every pixel, for the stereo occlusion test
+        # column index of every pixel, for the occlusion test
         self._cols = np.broadcast_to(np.arange(w, dtype=np.float32), self.shape)
+        self._static_z: np.ndarray | None = None
 
-    def _correlate(self, white: np.ndarray) -> np.ndarray:
-        """Unit-variance field with the profile's share of spatial correlation.
-
-        white + Gaussian-blurred white, weighted so that the blurred part carries
-        ``correlated_fraction`` of the variance and the sum has variance 1 (exact, from the
-        kernel's sum of squares and its centre weight).
-        """
-        if self._mix is None:
-            return white
-        a, b, size = self._mix
+    def _blur_unit(self, white: np.ndarray) -> np.ndarray:
+        """Gaussian-blurred white noise rescaled to unit variance (by the kernel's norm)."""
         sd = self.profile.correlation_px
-        blurred = cv2.GaussianBlur(white, (size, size), sd)
-        out: np.ndarray = white * np.float32(a) + blurred * np.float32(b)
+        size = int(2 * round(3 * sd) + 1)
+        k1 = cv2.getGaussianKernel(size, sd, cv2.CV_64F)
+        norm = float(np.sqrt(np.sum((k1 @ k1.T) ** 2)))
+        out: np.ndarray = cv2.GaussianBlur(white, (size, size), sd) * np.float32(1.0 / norm)
         return out
 
     def _temporal(self) -> np.ndarray:
+        h, w = self.shape
         n = self._n
-        hi = n * (self._POOL_FACTOR - 1)
-        o1, o2 = (int(v) for v in self.rng.integers(0, hi, 2))
-        eps = self._pools[0][o1:o1 + n] + self._pools[1][o2:o2 + n]
-        eps *= np.float32(np.sqrt(0.5))
-        return self._correlate(eps.reshape(self.shape))
+        o1 = int(self.rng.integers(0, n * (self._POOL_FRAMES - 1)))
+        o2 = int(self.rng.integers(0, h * (self._POOL_FRAMES - 1))) * w
+        a, b = self._weights
+        eps = self._white[o1:o1 + n] * a
+        eps += self._second[o2:o2 + n] * b
+        return eps.reshape(self.shape)
 
     def set_static(self, z_mm: np.ndarray) -> None:
         """Precompute what depends only on the static scene (the surface depth map)."""
         z = np.asarray(z_mm, dtype=np.float32)
         self._static_z = z
-        self._static = self._maps(z)
-        missing = self._edge_effects(z, self._static[0], None)[0]
+        sigma, add, bad = self._maps(z)
+        self._static_add = add
+        self._static_bias = sigma * self.bias
+        missing = bad | self._edge_effects(z, sigma, None)[0]
         if self.profile.baseline_mm > 0:
-            missing |= self._occluded(np.where(z > 0, z, np.float32(np.inf)))
+            r = self._cols - np.float32(self.profile.fx_px * self.profile.baseline_mm) / \
+                np.where(z > 0, z, np.float32(np.inf))
+            self._static_rmin = self._right_min(r)
+            missing |= self._hidden(r, self._static_rmin)
         self._static_missing = missing
 
     def _maps(self, z: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -215,37 +220,21 @@ class NoiseModel:
         """Noisy uint16 depth (mm) for one noise-free float32 depth map (mm, 0 = nothing).
 
         box: (x0, y0, x1, y1) outside which ``z_mm`` equals the depth given to
-        :meth:`set_static` (the surface); only that part is re-analysed. None = whole frame.
+        :meth:`set_static` (the surface); only that part is re-analysed. None = the whole
+        frame is new (it becomes the static scene).
         """
         p = self.profile
         z = np.asarray(z_mm, dtype=np.float32)
-        if box is None or getattr(self, "_static_z", None) is None:
+        if box is None or self._static_z is None:
             self.set_static(z)
             box = None
-        sigma_s, add_s, bad_s = self._static
         eps = self._temporal()
-        noisy = add_s * eps
-        noisy += sigma_s * self.bias
+        noisy = self._static_add * eps
+        noisy += self._static_bias
         noisy += z
         missing = self._static_missing.copy()
-        missing |= bad_s
         if box is not None and box[2] > box[0] and box[3] > box[1]:
-            h, w = self.shape
-            x0, y0 = max(box[0] - 2, 0), max(box[1] - 2, 0)
-            x1, y1 = min(box[2] + 2, w), min(box[3] + 2, h)
-            sl = (slice(y0, y1), slice(x0, x1))
-            zb = z[sl]
-            sigma, add, bad = self._maps(zb)
-            noisy[sl] = zb + add * eps[sl] + sigma * self.bias[sl]
-            edge_missing, fly = self._edge_effects(zb, sigma, noisy[sl])
-            if fly is not None:
-                noisy[sl] = fly
-            missing[sl] |= bad | edge_missing
-            if p.baseline_mm > 0:
-                # shadows fall to the left of near objects: rows of the box, columns up to it
-                rows = (slice(y0, y1), slice(0, w))
-                zr = z[rows]
-                missing[rows] |= self._occluded(np.where(zr > 0, zr, np.float32(np.inf)))
+            self._apply_box(z, eps, noisy, missing, box)
         if p.disparity_step_px > 0:
             fb = np.float32(p.fx_px * p.baseline_mm / p.disparity_step_px)
             disp = np.rint(fb / np.maximum(noisy, np.float32(1.0)))
@@ -258,6 +247,54 @@ class NoiseModel:
         np.copyto(noisy, np.float32(0.0), where=missing)
         return noisy.astype(np.uint16)
 
+    def _apply_box(self, z: np.ndarray, eps: np.ndarray, noisy: np.ndarray, missing: np.ndarray,
+                   box: tuple[int, int, int, int]) -> None:
+        """Redo noise, edge effects and shadows where the scene differs from the static one."""
+        p = self.profile
+        h, w = self.shape
+        x0, y0 = max(box[0] - 2, 0), max(box[1] - 2, 0)
+        x1, y1 = min(box[2] + 2, w), min(box[3] + 2, h)
+        sl = (slice(y0, y1), slice(x0, x1))
+        zb = z[sl]
+        sigma, add, bad = self._maps(zb)
+        nb = zb + add * eps[sl] + sigma * self.bias[sl]
+        edge_missing, fly = self._edge_effects(zb, sigma, nb)
+        noisy[sl] = nb if fly is None else fly
+        missing[sl] |= bad | edge_missing
+        if p.baseline_mm > 0:
+            # a pixel at x is hidden from the second view by a nearer pixel x' > x when
+            # x' - x < d(x') - d(x) <= d(x'): only columns within the largest disparity to the
+            # left of the box can change; right of the box the static suffix minimum holds
+            fb = np.float32(p.fx_px * p.baseline_mm)
+            zpos = zb[zb > 0]
+            shift = int(np.ceil(fb / float(zpos.min()))) + 1 if zpos.size else 0
+            c0 = max(x0 - shift, 0)
+            rows = slice(y0, y1)
+            zr = z[rows, c0:x1]
+            r = self._cols[: y1 - y0, c0:x1] - fb / np.where(zr > 0, zr, np.float32(np.inf))
+            rmin = self._right_min(r, self._static_rmin[rows, x1 - 1])
+            missing[rows, c0:x1] |= self._hidden(r, rmin)
+
+    @staticmethod
+    def _right_min(r: np.ndarray, boundary: np.ndarray | None = None) -> np.ndarray:
+        """Minimum of ``r`` over the pixels strictly to the right (``boundary`` beyond the end)."""
+        rev = np.minimum.accumulate(r[:, ::-1], axis=1)[:, ::-1]
+        out = np.empty_like(r)
+        out[:, :-1] = rev[:, 1:]
+        out[:, -1] = np.inf if boundary is None else boundary
+        if boundary is not None:
+            np.minimum(out, boundary[:, None], out=out)
+        return out
+
+    def _hidden(self, r: np.ndarray, right_min: np.ndarray) -> np.ndarray:
+        """Hidden from the second view (which sits ``baseline_mm`` to the right): the pixel lands
+        at r = x - d there, and a pixel to its right lands further left. Stereo also has no
+        match for the left band where r < 0."""
+        hidden = right_min < r - np.float32(0.5)
+        if self.profile.kind == "stereo":
+            hidden |= r < 0
+        return hidden
+
     def _edge_effects(
         self, z: np.ndarray, sigma: np.ndarray, noisy: np.ndarray | None
     ) -> tuple[np.ndarray, np.ndarray | None]:
@@ -265,7 +302,12 @@ class NoiseModel:
         p = self.profile
         if p.flying_prob <= 0 and p.edge_dropout_prob <= 0:
             return np.zeros(z.shape, bool), None
-        edges, zmin, zmax = self._depth_edges(z, sigma)
+        kernel = np.ones((3, 3), np.uint8)
+        zf = np.where(z > 0, z, np.float32(p.max_range_mm))
+        zmax = cv2.dilate(zf, kernel)
+        zmin = cv2.erode(zf, kernel)
+        # a jump well beyond the noise inside a 3x3 neighbourhood
+        edges = (zmax - zmin) > (np.float32(20.0) + np.float32(6.0) * sigma)
         missing = np.zeros(z.shape, bool)
         ey, ex = np.nonzero(edges)
         if ey.size == 0:
@@ -282,33 +324,3 @@ class NoiseModel:
             drop = self.rng.random(ey.size) < p.edge_dropout_prob
             missing[ey[drop], ex[drop]] = True
         return missing, out
-
-    def _depth_edges(
-        self, z: np.ndarray, sigma: np.ndarray
-    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Pixels whose 3x3 neighbourhood spans a depth jump (> 20 mm + 6 sigma)."""
-        kernel = np.ones((3, 3), np.uint8)
-        zf = np.where(z > 0, z, np.float32(self.profile.max_range_mm))
-        zmax = cv2.dilate(zf, kernel)
-        zmin = cv2.erode(zf, kernel)
-        edges = (zmax - zmin) > (np.float32(20.0) + np.float32(6.0) * sigma)
-        return edges, zmin, zmax
-
-    def _occluded(self, z: np.ndarray) -> np.ndarray:
-        """Pixels the second imager (or the projector) cannot see, and the unmatched left band.
-
-        The second view sits ``baseline_mm`` to the right: a pixel at column x appears there at
-        x - d with d = f b / z; it is hidden when a pixel to its right lands further left.
-        """
-        p = self.profile
-        disp = np.float32(p.fx_px * p.baseline_mm) / z
-        r = self._cols[: disp.shape[0]] - disp
-        # suffix minimum of r over the pixels strictly to the right
-        rev = np.minimum.accumulate(r[:, ::-1], axis=1)[:, ::-1]
-        right_min = np.empty_like(r)
-        right_min[:, :-1] = rev[:, 1:]
-        right_min[:, -1] = np.inf
-        hidden = right_min < r - np.float32(0.5)
-        if p.kind == "stereo":
-            hidden |= r < 0
-        return hidden

@@ -217,12 +217,17 @@ def make_surface(kind: str, distance_m: float, tilt_deg: float, radius_mm: float
 # --- primitives -----------------------------------------------------------------------------------
 @dataclass(frozen=True)
 class Capsule:
-    """Segment a-b (mm, camera frame) swept by a sphere of ``radius_mm``; ``label`` > 0."""
+    """Segment a-b (mm, camera frame) swept by a sphere of ``radius_mm``; ``label`` > 0.
+
+    cap_a / cap_b: draw the end sphere; a chain of capsules needs each joint's sphere once.
+    """
 
     a: np.ndarray
     b: np.ndarray
     radius_mm: float
     label: int
+    cap_a: bool = True
+    cap_b: bool = True
 
     def rotated(self, R: np.ndarray) -> Capsule:
         return replace(self, a=R @ self.a, b=R @ self.b)
@@ -239,13 +244,19 @@ class Capsule:
         product of the ray with a constant vector: cheap and well conditioned in float32.
         """
         a, b, r = self.a, self.b, self.radius_mm
-        t = _sphere_t(dx, dy, dz, a, r)
-        np.minimum(t, _sphere_t(dx, dy, dz, b, r), out=t)
+        if self.cap_a:
+            t = _sphere_t(dx, dy, dz, a, r)
+            if self.cap_b:
+                np.minimum(t, _sphere_t(dx, dy, dz, b, r), out=t)
+        elif self.cap_b:
+            t = _sphere_t(dx, dy, dz, b, r)
+        else:
+            t = np.full(dx.shape, np.inf, np.float32)
         length = float(np.linalg.norm(b - a))
         if length < 1e-6:
             return t
         w = (b - a) / length
-        m = np.cross(a, w)
+        m = (a[1] * w[2] - a[2] * w[1], a[2] * w[0] - a[0] * w[2], a[0] * w[1] - a[1] * w[0])
         aw = float(a @ w)
         f = np.float32
         dw = f(w[0]) * dx + f(w[1]) * dy + f(w[2]) * dz
@@ -367,7 +378,12 @@ def _split_long(prims: list[Primitive], rays: Rays, max_px: float = 60.0) -> lis
             out.append(prim)
             continue
         pts = prim.a + np.linspace(0.0, 1.0, k + 1)[:, None] * (prim.b - prim.a)
-        out += [Capsule(p, q, prim.radius_mm, prim.label) for p, q in zip(pts[:-1], pts[1:])]
+        # inner joints' spheres lie inside the neighbouring bodies (pieces are >= r long)
+        inner = float(np.linalg.norm(prim.b - prim.a)) / k >= prim.radius_mm
+        out += [Capsule(p, q, prim.radius_mm, prim.label,
+                        cap_a=prim.cap_a if i == 0 else not inner,
+                        cap_b=prim.cap_b if i == k - 1 else True)
+                for i, (p, q) in enumerate(zip(pts[:-1], pts[1:]))]
     return out
 
 

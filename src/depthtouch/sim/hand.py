@@ -148,7 +148,7 @@ def build_hand(
         s1, s2 = shape.segments_mm[name]
         base = thumb_base if name == "thumb" else knuckles[name]
         if name == lead.finger:
-            prims += [Capsule(k_lead, mid, fr, label), Capsule(mid, c, fr, label)]
+            prims += [Capsule(k_lead, mid, fr, label), Capsule(mid, c, fr, label, cap_a=False)]
             tips.append(Tip(name, tip_point, n, lead.gap_mm, label))
         elif name in targets:
             f = targets[name]
@@ -163,16 +163,16 @@ def build_hand(
             dj = _unit(dj) if np.linalg.norm(dj) > 1e-6 else d
             pj = min(phi, math.radians(45.0)) if name == "thumb" else phi
             m = fc - s2 * math.cos(pj) * dj + s2 * math.sin(pj) * fn
-            prims += [Capsule(base, m, fr, label), Capsule(m, fc, fr, label)]
+            prims += [Capsule(base, m, fr, label), Capsule(m, fc, fr, label, cap_a=False)]
             tips.append(Tip(name, fp, fn, f.gap_mm, label))
         elif name == "thumb":
             p1 = lift(base + 0.8 * s1 * fwd + 0.2 * s1 * down + 0.3 * s1 * lat, fr)
             p2 = lift(p1 + 0.7 * s2 * lat + 0.2 * s2 * fwd, fr)
-            prims += [Capsule(base, p1, fr, label), Capsule(p1, p2, fr, label)]
+            prims += [Capsule(base, p1, fr, label), Capsule(p1, p2, fr, label, cap_a=False)]
         else:
             p1 = lift(base + 0.35 * s1 * fwd + 0.45 * s1 * down, fr)
             p2 = lift(p1 - 0.3 * s2 * fwd + 0.35 * s2 * down, fr)
-            prims += [Capsule(base, p1, fr, label), Capsule(p1, p2, fr, label)]
+            prims += [Capsule(base, p1, fr, label), Capsule(p1, p2, fr, label, cap_a=False)]
 
     palm = label_base + PALM
     for name in FINGERS[1:]:
