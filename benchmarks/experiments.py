@@ -30,7 +30,7 @@ from depthtouch import __version__
 from depthtouch.config import PipelineConfig
 from depthtouch.evaluation import EvalResult, Metrics, summarize
 from depthtouch.report import metrics_markdown, plot_xy
-from depthtouch.suite import SuiteCase, group_metrics, load_suite, run_cases
+from depthtouch.suite import SuiteCase, group_metrics, load_suite, run_cases, run_grid
 
 CAMERAS = ("kinect-v2", "realsense-d435", "kinect-v1")
 ROOT = Path(__file__).resolve().parents[1]
@@ -148,9 +148,10 @@ class Experiments:
         cases = _cases(["taps", "drags"], CAMERAS, [1.0, 1.6], [21])
         out: dict[str, Metrics] = {}
         t0 = time.perf_counter()
-        for stat in ("mean", "mode", "median"):
-            cfg = PipelineConfig().replace(surface={"statistic": stat})
-            res = self.run(cases, cfg)
+        stats = ("mean", "mode", "median")
+        grid = run_grid(cases, [PipelineConfig().replace(surface={"statistic": st})
+                                for st in stats], workers=self.workers)
+        for stat, res in zip(stats, grid, strict=True):
             for cam in CAMERAS:
                 sel = [r for c, r in zip(cases, res, strict=True) if c.camera == cam]
                 out[f"{stat} / {cam}"] = summarize(sel)
@@ -170,14 +171,11 @@ class Experiments:
         tus = [15.0, 25.0, 40.0] if self.quick else [12.0, 15.0, 20.0, 25.0, 35.0, 50.0]
         cases = _cases(["taps", "drags", "hover"], ["kinect-v2", "realsense-d435"], [1.2], [31])
         t0 = time.perf_counter()
-        grid: dict[tuple[float, float], Metrics] = {}
         base = PipelineConfig()
-        for tl in tls:
-            for tu in tus:
-                if tu <= tl:
-                    continue
-                cfg = base.replace(regions={"tl_floor_mm": tl, "tu_mm": tu})
-                grid[(tl, tu)] = summarize(self.run(cases, cfg))
+        pairs = [(tl, tu) for tl in tls for tu in tus if tu > tl]
+        runs = run_grid(cases, [base.replace(regions={"tl_floor_mm": tl, "tu_mm": tu})
+                                for tl, tu in pairs], workers=self.workers)
+        grid = {pair: summarize(res) for pair, res in zip(pairs, runs, strict=True)}
         self.timings["thresholds"] = time.perf_counter() - t0
         rec = {f"Tu {tu:g} mm": (tls, [grid[(tl, tu)].contact_recall if (tl, tu) in grid
                                        else math.nan for tl in tls]) for tu in tus}

@@ -104,6 +104,7 @@ def test_cache_key_depends_on_parameters() -> None:
     assert a.cache_key() != SuiteCase("taps", "kinect-v2", 1.2, seed=1).cache_key()
 
 
+@pytest.mark.slow  # writing a compressed recording takes ~25 s of CPU
 def test_recording_is_rendered_once_and_cached(tmp_path: Path) -> None:
     case = SuiteCase("taps", "kinect-v2", 1.0, seed=5)
     rec, truth = ensure_recording(case, tmp_path)

@@ -151,13 +151,16 @@ def _add_eval(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--config", help="TOML config file (see docs/config.md)")
     p.add_argument("--gate-mm", type=float, default=20.0, help="match gate in mm (default 20)")
     p.add_argument("--workers", type=int, help="processes for a suite (default: cores, <= 4)")
+    p.add_argument("--cache", action="store_true",
+                   help="keep the suite's recordings in .cache/depthtouch/suite (or "
+                        "$DEPTHTOUCH_CACHE) and reuse them")
     p.add_argument("--json", action="store_true", help="print the metrics as JSON")
 
     def run(a: argparse.Namespace) -> int:
         import json
 
         from .errors import ConfigError
-        from .suite import eval_recording_command, eval_suite_command
+        from .suite import cache_root, eval_recording_command, eval_suite_command
 
         cfg = _load_config(a.config)
         if a.suite:
@@ -165,6 +168,7 @@ def _add_eval(sub: argparse._SubParsersAction) -> None:
                 raise ConfigError("give either --suite or a recording with --truth, not both")
             metrics = eval_suite_command(
                 a.suite, subset=a.subset, by=a.by, config=cfg, workers=a.workers,
+                cache=cache_root() if a.cache else None,
                 progress=None if a.json else _print_case,
             )
         else:
@@ -177,7 +181,10 @@ def _add_eval(sub: argparse._SubParsersAction) -> None:
 
             from .report import metrics_table
 
-            Console().print(metrics_table(metrics, title=f"accuracy ({a.suite or 'recording'})"))
+            wide = None if sys.stdout.isatty() else 200  # no terminal: do not squeeze to 80
+            Console(width=wide).print(
+                metrics_table(metrics, title=f"accuracy ({a.suite or 'recording'})")
+            )
         return 0
 
     p.set_defaults(func=run)
@@ -206,7 +213,8 @@ def _add_demo(sub: argparse._SubParsersAction) -> None:
         res = run_demo(a.out, scenes=scenes or DEMO_SCENES, camera=a.camera,
                        distance_m=a.distance, seed=a.seed, config=_load_config(a.config),
                        progress=lambda msg: print(msg, flush=True))
-        Console().print(metrics_table(res.metrics, title="demo accuracy"))
+        wide = None if sys.stdout.isatty() else 200
+        Console(width=wide).print(metrics_table(res.metrics, title="demo accuracy"))
         print(f"report written to {res.index.resolve()} ({res.seconds:.1f} s)")
         return 0
 

@@ -17,10 +17,13 @@ group is a grid of scenes x cameras x distances x surfaces x tilts x seeds::
     seeds = [1]
     tags = ["quick"]               # optional: subsets a run may select
 
-Recordings are rendered by :func:`depthtouch.sim.render_scene` the first time a case is needed and
-cached under ``<cache>/suite/`` (``.cache/depthtouch`` unless ``DEPTHTOUCH_CACHE`` is set), keyed
-by a hash of the case parameters, the package version and the simulator's source, so a change of
-the simulator renders again. Nothing here is committed but the suite file.
+Recordings are rendered in memory by :func:`depthtouch.sim.render_scene` when a case runs:
+rendering costs 1-3 s of CPU per recording, less than reading a compressed cache file
+(about 1.3 s) and far less than writing one (about 25 s). With ``cache`` (``depthtouch eval
+--suite default --cache``) the recordings and truths are kept under ``<cache>/suite/``
+(``.cache/depthtouch`` unless ``DEPTHTOUCH_CACHE`` is set), keyed by a hash of the case
+parameters, the package version and the simulator's source (a changed simulator renders again),
+for replaying them with other tools. Nothing here is committed but the suite file.
 """
 
 from __future__ import annotations
@@ -30,7 +33,7 @@ import hashlib
 import json
 import os
 import sys
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
@@ -40,7 +43,7 @@ from . import __version__
 from .config import PipelineConfig
 from .errors import ConfigError
 from .evaluation import GATE_MM, EvalResult, Metrics, Truth, evaluate, read_truth, summarize
-from .types import TouchEvent
+from .types import Frame, TouchEvent
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -256,23 +259,34 @@ def ensure_recording(case: SuiteCase, cache: Path | None = None) -> tuple[Path, 
 
 
 # --- running -------------------------------------------------------------------------------------
-def run_pipeline(
-    recording: str | Path, config: PipelineConfig | None = None
-) -> tuple[list[TouchEvent], list[float]]:
-    """Run the sensor over a recording; returns (events, ms per processed frame)."""
+def _run(pipe_frames: Iterable[Frame], config: PipelineConfig | None
+         ) -> tuple[list[TouchEvent], list[float]]:
     from .pipeline import Pipeline
-    from .sources import open_source
 
     pipe = Pipeline(config)
     events: list[TouchEvent] = []
     timing: list[float] = []
-    with open_source(recording) as src:
-        for frame in src.frames():
-            events.extend(pipe.process(frame))
-            if not pipe.learning and "total" in pipe.last_timing_ms:
-                timing.append(pipe.last_timing_ms["total"])
+    for frame in pipe_frames:
+        events.extend(pipe.process(frame))
+        if not pipe.learning and "total" in pipe.last_timing_ms:
+            timing.append(pipe.last_timing_ms["total"])
     events.extend(pipe.finish())
     return events, timing
+
+
+def run_pipeline(
+    recording: str | Path, config: PipelineConfig | None = None
+) -> tuple[list[TouchEvent], list[float]]:
+    """Run the sensor over a recording file; returns (events, ms per processed frame)."""
+    from .sources import open_source
+
+    with open_source(recording) as src:
+        return _run(src.frames(), config)
+
+
+def _sim_frames(rec: Any) -> Iterator[Frame]:
+    for i in range(rec.depth.shape[0]):
+        yield Frame(rec.depth[i], float(rec.timestamps_s[i]), i, rec.depth_scale_m, rec.K)
 
 
 def evaluate_recording(
@@ -283,7 +297,7 @@ def evaluate_recording(
     gate_mm: float = GATE_MM,
     label: str = "",
 ) -> EvalResult:
-    """Run the pipeline on one recording and evaluate it against its truth."""
+    """Run the pipeline on one recording file and evaluate it against its truth."""
     t = truth if isinstance(truth, Truth) else read_truth(truth)
     events, timing = run_pipeline(recording, config)
     settle = (config or PipelineConfig()).tracking.down_frames
@@ -293,19 +307,73 @@ def evaluate_recording(
 
 def evaluate_case(
     case: SuiteCase,
-    config: PipelineConfig | None = None,
+    configs: Sequence[PipelineConfig | None] = (None,),
     *,
     gate_mm: float = GATE_MM,
     cache: Path | None = None,
-) -> EvalResult:
-    """Render (or load from the cache) one case and evaluate the pipeline on it."""
-    rec, truth = ensure_recording(case, cache)
-    return evaluate_recording(rec, truth, config, gate_mm=gate_mm, label=case.label)
+) -> list[EvalResult]:
+    """Evaluate the pipeline with each of ``configs`` on one case (rendered once).
+
+    Without ``cache`` the case is rendered in memory; with it, the recording is read from the
+    cache, or rendered and written there first.
+    """
+    if cache is not None:
+        rec_path, truth_path = ensure_recording(case, cache)
+        return [evaluate_recording(rec_path, truth_path, cfg, gate_mm=gate_mm, label=case.label)
+                for cfg in configs]
+    from .evaluation import truth_from_dict
+    from .sim import render_scene
+
+    rec = render_scene(case.scene, **case.render_kwargs())
+    truth = truth_from_dict(rec.truth, case.label)
+    out = []
+    for cfg in configs:
+        events, timing = _run(_sim_frames(rec), cfg)
+        settle = (cfg or PipelineConfig()).tracking.down_frames
+        out.append(evaluate(truth, events, gate_mm=gate_mm, settle_frames=settle,
+                            timing_ms=timing, label=case.label))
+    return out
 
 
-def _worker(args: tuple[SuiteCase, PipelineConfig | None, float, Path | None]) -> EvalResult:
-    case, config, gate, cache = args
-    return evaluate_case(case, config, gate_mm=gate, cache=cache)
+_Job = tuple[SuiteCase, Sequence[PipelineConfig | None], float, Path | None]
+
+
+def _worker(job: _Job) -> list[EvalResult]:
+    case, configs, gate, cache = job
+    return evaluate_case(case, configs, gate_mm=gate, cache=cache)
+
+
+def run_grid(
+    cases: Sequence[SuiteCase],
+    configs: Sequence[PipelineConfig | None] = (None,),
+    *,
+    gate_mm: float = GATE_MM,
+    workers: int = 1,
+    cache: Path | None = None,
+    progress: Callable[[SuiteCase, EvalResult], None] | None = None,
+) -> list[list[EvalResult]]:
+    """Evaluate every config on every case; ``result[k][i]`` is config k on case i.
+
+    Cases run in ``workers`` processes when > 1; each case is rendered once for all configs.
+    """
+    if workers < 1:
+        raise ConfigError(f"workers = {workers} must be at least 1")
+    jobs: list[_Job] = [(c, list(configs), gate_mm, cache) for c in cases]
+    per_case: list[list[EvalResult]] = []
+
+    def done(c: SuiteCase, rs: list[EvalResult]) -> None:
+        if progress:
+            progress(c, rs[0])
+        per_case.append(rs)
+
+    if workers == 1 or len(cases) < 2:
+        for c, job in zip(cases, jobs, strict=True):
+            done(c, _worker(job))
+    else:
+        with ProcessPoolExecutor(max_workers=min(workers, len(cases))) as ex:
+            for c, rs in zip(cases, ex.map(_worker, jobs), strict=True):
+                done(c, rs)
+    return [[rs[k] for rs in per_case] for k in range(len(configs))]
 
 
 def run_cases(
@@ -317,24 +385,9 @@ def run_cases(
     cache: Path | None = None,
     progress: Callable[[SuiteCase, EvalResult], None] | None = None,
 ) -> list[EvalResult]:
-    """Evaluate cases (in ``workers`` processes when > 1); results in the order of ``cases``."""
-    if workers < 1:
-        raise ConfigError(f"workers = {workers} must be at least 1")
-    jobs = [(c, config, gate_mm, cache) for c in cases]
-    results: list[EvalResult] = []
-    if workers == 1 or len(cases) < 2:
-        for c, job in zip(cases, jobs, strict=True):
-            r = _worker(job)
-            if progress:
-                progress(c, r)
-            results.append(r)
-        return results
-    with ProcessPoolExecutor(max_workers=min(workers, len(cases))) as ex:
-        for c, r in zip(cases, ex.map(_worker, jobs), strict=True):
-            if progress:
-                progress(c, r)
-            results.append(r)
-    return results
+    """Evaluate one config on cases; results in the order of ``cases`` (see :func:`run_grid`)."""
+    return run_grid(cases, [config], gate_mm=gate_mm, workers=workers, cache=cache,
+                    progress=progress)[0]
 
 
 def group_metrics(
@@ -410,7 +463,10 @@ def eval_suite_command(
     cache: Path | None = None,
     progress: Callable[[SuiteCase, EvalResult], None] | None = None,
 ) -> dict[str, Metrics]:
-    """``depthtouch eval --suite NAME``: metrics pooled by ``by``, plus ``all`` at the end."""
+    """``depthtouch eval --suite NAME``: metrics pooled by ``by``, plus ``all`` at the end.
+
+    cache: keep the rendered recordings in this folder (None: render in memory only).
+    """
     s = load_suite(suite)
     cases = s.select(subset)
     results = run_cases(cases, config, gate_mm=s.gate_mm, workers=workers or default_workers(),

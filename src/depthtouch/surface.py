@@ -165,21 +165,31 @@ def load_surface(path: str | Path) -> SurfaceModel:
     return base.with_statistic(statistic)
 
 
-def _mode_along_axis0(sorted_vals: np.ndarray) -> np.ndarray:
-    """Per-column mode of an axis-0 sorted integer stack, ignoring zeros (vectorised run lengths).
+def _mode_rows(sorted_rows: np.ndarray) -> np.ndarray:
+    """Per-row mode of a row-wise sorted integer array (P, N), ignoring zeros (vectorised).
 
     Ties go to the larger value (the later run), which is the farther depth: a surface is never
-    in front of what the camera sees.
+    in front of what the camera sees. The run lengths are accumulated frame by frame over all
+    pixels at once (frames-by-pixels layout: numpy accumulates fast across the inner axis).
     """
-    n = sorted_vals.shape[0]
-    idx = np.arange(n, dtype=np.int32).reshape((n,) + (1,) * (sorted_vals.ndim - 1))
-    change = np.ones(sorted_vals.shape, dtype=bool)
-    change[1:] = sorted_vals[1:] != sorted_vals[:-1]
-    start = np.maximum.accumulate(np.where(change, idx, 0), axis=0)
-    run = (idx - start + 1).astype(np.int32)
-    run[sorted_vals == 0] = 0
-    last = run.shape[0] - 1 - np.argmax(run[::-1], axis=0)
-    return np.take_along_axis(sorted_vals, last[None], axis=0)[0]
+    p, n = sorted_rows.shape
+    if n > 250:
+        raise SurfaceError(f"the mode needs at most 250 frames, got {n}; learn from fewer frames")
+    cols = np.ascontiguousarray(sorted_rows.T)  # (N, P)
+    best_run = np.zeros(p, np.int16)
+    best_val = np.zeros(p, sorted_rows.dtype)
+    run = np.zeros(p, np.int16)
+    for i in range(n):  # a loop over the (few) frames; each step is vectorised over the pixels
+        v = cols[i]
+        if i:
+            same = v == cols[i - 1]
+            run = np.where(same, run + 1, 1).astype(np.int16)
+        else:
+            run = np.ones(p, np.int16)
+        better = (run >= best_run) & (v > 0)
+        best_run = np.where(better, run, best_run)
+        best_val = np.where(better, v, best_val)
+    return best_val
 
 
 def learn_surface(
@@ -190,31 +200,34 @@ def learn_surface(
 ) -> SurfaceModel:
     """Learn a surface from a stack of empty-surface frames, uint16 (N, H, W); pure.
 
+    Works on a pixels-by-frames copy so that every per-pixel statistic runs over contiguous
+    memory (the sort for the mode and median dominates: ~0.5 s for 45 frames at 848x480).
     Raises SurfaceError when fewer than 2 frames are given or no pixel is usable.
     """
     cfg = config or SurfaceConfig()
     if depth.ndim != 3 or depth.dtype != np.uint16:
         raise SurfaceError(f"learn_surface: expected uint16 (N, H, W), got {depth.dtype} {depth.shape}")
-    n = depth.shape[0]
+    n, h, w = depth.shape
     if n < 2:
         raise SurfaceError(f"the surface needs at least 2 frames, got {n}; record a longer empty start")
     to_mm = np.float32(depth_scale_m * 1000.0)
-    valid_s = depth > 0
-    count = valid_s.sum(axis=0)
-    safe = np.maximum(count, 1).astype(np.float32)
-    d = depth.astype(np.float32) * to_mm
-    mean = (d.sum(axis=0) / safe).astype(np.float32)
-    var = ((d * d).sum(axis=0) / safe - mean * mean).clip(min=0)
-    # unbiased where possible
-    var = var * (count / np.maximum(count - 1, 1))
-    sigma = np.maximum(np.sqrt(var), np.float32(cfg.noise_floor_mm)).astype(np.float32)
-    s = np.sort(depth, axis=0)
-    mode = _mode_along_axis0(s).astype(np.float32) * to_mm
+    rows = np.sort(depth.reshape(n, -1).T, axis=1)  # (P, N), zeros first
+    count = np.count_nonzero(rows, axis=1)
+    safe = np.maximum(count, 1)
+    mean_u = rows.sum(axis=1, dtype=np.uint64) / safe
+    dev = rows.astype(np.float32) - mean_u.astype(np.float32)[:, None]
+    dev[rows == 0] = 0
+    var = (dev * dev).sum(axis=1) / np.maximum(count - 1, 1)
+    sigma = np.maximum(np.sqrt(var) * to_mm, np.float32(cfg.noise_floor_mm)).astype(np.float32)
+    mean = (mean_u * to_mm).astype(np.float32)
+    mode = _mode_rows(rows).astype(np.float32) * to_mm
     # median of the valid samples: zeros sort first, so the valid ones start at n - count
     lo = np.minimum((n - count) + np.maximum(count - 1, 0) // 2, n - 1)
     hi = np.minimum((n - count) + count // 2, n - 1)
-    med = 0.5 * (np.take_along_axis(s, lo[None], 0)[0].astype(np.float32)
-                 + np.take_along_axis(s, hi[None], 0)[0].astype(np.float32)) * to_mm
+    pix = np.arange(rows.shape[0])
+    med = 0.5 * (rows[pix, lo].astype(np.float32) + rows[pix, hi].astype(np.float32)) * to_mm
+    mean, mode, med, sigma = (a.reshape(h, w) for a in (mean, mode, med, sigma))
+    count = count.reshape(h, w)
     valid = (count >= max(2, int(np.ceil(cfg.min_valid_fraction * n)))) & (mean > 0)
     if not valid.any():
         raise SurfaceError(

@@ -158,12 +158,12 @@ class NoiseModel:
         else:
             self._second = second.reshape(-1)
             self._weights = (np.float32(np.sqrt(0.5)), np.float32(np.sqrt(0.5)))
-        bias = rng.standard_normal(self.shape, dtype=np.float32)
+        bias: np.ndarray = rng.standard_normal(self.shape, dtype=np.float32)
         if rho > 0:
             a, b = self._weights
-            bias = a * bias + b * self._blur_unit(rng.standard_normal(self.shape,
-                                                                      dtype=np.float32))
-        self.bias = bias * np.float32(profile.bias_fraction)
+            blurred = self._blur_unit(rng.standard_normal(self.shape, dtype=np.float32))
+            bias = (a * bias + b * blurred).astype(np.float32)
+        self.bias = (bias * np.float32(profile.bias_fraction)).astype(np.float32)
         # column index of every pixel, for the occlusion test
         self._cols = np.broadcast_to(np.arange(w, dtype=np.float32), self.shape)
         self._static_z: np.ndarray | None = None

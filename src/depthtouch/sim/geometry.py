@@ -4,7 +4,7 @@ Camera frame: X right, Y down, Z along the optical axis, millimetres. A pixel's 
 ``(x', y', 1)`` with ``x' = (col - cx) / fx``; a hit at range t along the unit ray has depth
 ``Z = t * dz``. Surfaces fill a whole depth map at once; primitives (capsules, spheres, boxes)
 render only inside their projected bounding box and keep the nearest depth (a z-buffer) and a
-label per pixel.
+label per pixel. Boxes are exact for spheres and capsules (tangent planes through the camera).
 
 Surfaces are parametrised by (s, t) in mm on the surface: s along ``u`` (image right), t along
 the surface in the ``v`` direction (image down; arc length on a cylinder).
@@ -350,6 +350,29 @@ def _sphere_t(dx: np.ndarray, dy: np.ndarray, dz: np.ndarray, c: np.ndarray, r: 
 
 def bbox_px(prim: Primitive, rays: Rays) -> tuple[int, int, int, int] | None:
     """Pixel box (x0, y0, x1, y1), exclusive ends, covering the primitive; None if off-image."""
+    if isinstance(prim, (Capsule, Sphere)):
+        # a capsule's image is the hull of its end spheres' images; a sphere's image spans
+        # x' = (cx cz +- r sqrt(cx^2 + cz^2 - r^2)) / (cz^2 - r^2) (the two tangent planes
+        # through the camera), the same in y
+        ends = (prim.a, prim.b) if isinstance(prim, Capsule) else (prim.center,)
+        r = prim.radius_mm
+        if min(float(e[2]) for e in ends) - r <= 1.0:
+            return 0, 0, rays.w, rays.h
+        xs: list[float] = []
+        ys: list[float] = []
+        for e in ends:
+            cx, cy, cz = float(e[0]), float(e[1]), float(e[2])
+            den = cz * cz - r * r
+            for c, out in ((cx, xs), (cy, ys)):
+                root = r * math.sqrt(c * c + cz * cz - r * r)
+                out += [(c * cz - root) / den, (c * cz + root) / den]
+        x0 = max(int(math.floor(rays.fx * min(xs) + rays.cx)) - 1, 0)
+        y0 = max(int(math.floor(rays.fy * min(ys) + rays.cy)) - 1, 0)
+        x1 = min(int(math.ceil(rays.fx * max(xs) + rays.cx)) + 2, rays.w)
+        y1 = min(int(math.ceil(rays.fy * max(ys) + rays.cy)) + 2, rays.h)
+        if x0 >= x1 or y0 >= y1:
+            return None
+        return x0, y0, x1, y1
     lo, hi = prim.bounds()
     if lo[2] <= 1.0:
         return 0, 0, rays.w, rays.h
@@ -365,28 +388,6 @@ def bbox_px(prim: Primitive, rays: Rays) -> tuple[int, int, int, int] | None:
     return x0, y0, x1, y1
 
 
-def _split_long(prims: list[Primitive], rays: Rays, max_px: float = 60.0) -> list[Primitive]:
-    """Capsules long on screen cut into pieces (the union is the same solid): tighter boxes."""
-    out: list[Primitive] = []
-    for prim in prims:
-        if not isinstance(prim, Capsule) or min(prim.a[2], prim.b[2]) <= 1.0:
-            out.append(prim)
-            continue
-        ends = rays.project(np.stack([prim.a, prim.b]))
-        k = int(np.linalg.norm(ends[1] - ends[0]) // max_px) + 1
-        if k == 1:
-            out.append(prim)
-            continue
-        pts = prim.a + np.linspace(0.0, 1.0, k + 1)[:, None] * (prim.b - prim.a)
-        # inner joints' spheres lie inside the neighbouring bodies (pieces are >= r long)
-        inner = float(np.linalg.norm(prim.b - prim.a)) / k >= prim.radius_mm
-        out += [Capsule(p, q, prim.radius_mm, prim.label,
-                        cap_a=prim.cap_a if i == 0 else not inner,
-                        cap_b=prim.cap_b if i == k - 1 else True)
-                for i, (p, q) in enumerate(zip(pts[:-1], pts[1:]))]
-    return out
-
-
 def render_primitives(
     rays: Rays, prims: list[Primitive], zbuf: np.ndarray, labels: np.ndarray
 ) -> tuple[int, int, int, int] | None:
@@ -396,7 +397,7 @@ def render_primitives(
     pixel box (x0, y0, x1, y1) that holds every change, None when nothing was drawn.
     """
     union: list[int] | None = None
-    for prim in _split_long(prims, rays):
+    for prim in prims:
         box = bbox_px(prim, rays)
         if box is None:
             continue
