@@ -55,6 +55,60 @@ def _fmt(v: float, f: str = "{:.3f}") -> str:
     return "-" if not math.isfinite(v) else f.format(v)
 
 
+TARGETS = (
+    ("contact recall", "contact_recall", ">=", 0.98),
+    ("false touches from fingers hovering >= 25 mm", "hover_ge25", "<=", 0),
+    ("median position error (mm)", "error_median_mm", "<=", 4.0),
+    ("p95 position error (mm)", "error_p95_mm", "<=", 10.0),
+    ("id switches", "id_switches", "<=", 0),
+    ("median touch-down latency (frames at 30 fps)", "down_latency_median_frames", "<=", 2.0),
+)
+
+
+def _get(m: Metrics, key: str) -> float:
+    return float(m.false_from_hover_at_least(25.0) if key == "hover_ge25" else getattr(m, key))
+
+
+def _meets(v: float, op: str, lim: float) -> bool:
+    return v >= lim if op == ">=" else v <= lim
+
+
+def _acceptance(m: Metrics) -> list[str]:
+    rows = ["| target | wanted | measured | met |", "|---|---|---|---|"]
+    for name, key, op, lim in TARGETS:
+        v = _get(m, key)
+        rows.append(f"| {name} | {op} {lim:g} | {v:.3g} | {'yes' if _meets(v, op, lim) else 'NO'} |")
+    return rows
+
+
+def _failures(cases: Sequence[SuiteCase], results: Sequence[EvalResult]) -> list[str]:
+    bad: list[tuple[float, str]] = []
+    for c, r in zip(cases, results, strict=True):
+        m = summarize([r])
+        why = []
+        if m.contact_recall < 0.98:
+            why.append(f"recall {m.contact_recall:.2f}")
+        if m.false_touches:
+            bands = ", ".join(f"{k} mm: {v}" if k != "other" else f"other: {v}"
+                              for k, v in m.false_by_hover.items() if v)
+            why.append(f"{m.false_touches} false ({bands})")
+        if m.error_median_mm > 4.0:
+            why.append(f"err med {m.error_median_mm:.1f} mm")
+        if m.error_p95_mm > 10.0:
+            why.append(f"err p95 {m.error_p95_mm:.1f} mm")
+        if m.id_switches:
+            why.append(f"{m.id_switches} id switches")
+        if m.down_latency_median_frames > 2.0:
+            why.append(f"down latency {m.down_latency_median_frames:.1f} frames")
+        if why:
+            score = ((1 - m.contact_recall) * 100 if math.isfinite(m.contact_recall) else 0.0)
+            score += m.false_touches + m.id_switches
+            bad.append((score, f"- `{c.label}`: " + "; ".join(why)))
+    if not bad:
+        return ["(none)"]
+    return [line for _, line in sorted(bad, key=lambda x: -x[0])]
+
+
 class Experiments:
     def __init__(self, out: Path, figures: Path, workers: int, quick: bool) -> None:
         self.out, self.figures, self.workers, self.quick = out, figures, workers, quick
@@ -78,6 +132,15 @@ class Experiments:
         overall = summarize(res)
         self.md += [
             "## 1. The default suite",
+            "",
+            *_acceptance(overall),
+            "",
+            "### Where it fails",
+            "",
+            "Recordings that miss a target (recall < 0.98, a false touch, median error > 4 mm, "
+            "p95 > 10 mm, an id switch, median touch-down latency > 2 frames), worst first:",
+            "",
+            *_failures(cases, res),
             "",
             f"`depthtouch eval --suite default`: {len(cases)} recordings "
             f"({overall.duration_s / 60:.1f} min of simulated video, {overall.contacts} contact "

@@ -64,7 +64,7 @@ def test_demo_writes_report(tmp_path: Path) -> None:
     out = tmp_path / "rep"
     html = res.index.read_text()
     assert res.index == out / "index.html"
-    for name in ("taps-height.png", "taps-paths.png", "taps.events.jsonl"):
+    for name in ("taps-depth.png", "taps-height.png", "taps-paths.png", "taps.events.jsonl"):
         assert (out / name).is_file(), name
         assert name in html
     lines = (out / "taps.events.jsonl").read_text().splitlines()

@@ -341,3 +341,16 @@ def test_cli_eval_errors_are_one_line(
     err = capsys.readouterr().err
     assert needle in err
     assert err.count("\n") == 1
+
+
+def test_events_beyond_the_truth_are_an_error() -> None:
+    with pytest.raises(SourceError, match="events reach frame 39 but the truth has 30 frames"):
+        evaluate(tap_truth(n=30), track(1, range(35, 40), (300, 200), up=False))
+
+
+@pytest.mark.parametrize("gate", [0.0, -1.0, float("nan")])
+def test_bad_gate_is_a_config_error(gate: float) -> None:
+    from depthtouch.errors import ConfigError
+
+    with pytest.raises(ConfigError, match="gate_mm"):
+        evaluate(tap_truth(), [], gate_mm=gate)

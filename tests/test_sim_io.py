@@ -81,14 +81,18 @@ def test_write_png_folder(tmp_path: Path, small_rec: Any) -> None:
         ("x.avi", "x.truth.json", "unknown recording type '.avi'"),
         ("x.npz", "x.truth.txt", "must end in .json"),
         ("same.json", "same.json", "need different paths"),
+        ("full_dir", "x.truth.json", "exists and is not an empty folder"),
     ],
 )
 def test_write_recording_errors(tmp_path: Path, small_rec: Any, out: str, truth: str,
                                 message: str) -> None:
+    (tmp_path / "full_dir").mkdir()
+    (tmp_path / "full_dir" / "keep.txt").write_text("x", encoding="utf-8")
     with pytest.raises(SourceError) as err:
         write_recording(small_rec, tmp_path / out, tmp_path / truth)
     assert message in str(err.value) and "\n" not in str(err.value)
-    assert not any(p.name.endswith(".npz") for p in tmp_path.iterdir())
+    # nothing was written: no recording, no truth, no temporary files
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["full_dir"]
 
 
 def _valid_truth() -> dict[str, Any]:

@@ -29,7 +29,7 @@ from typing import Any
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
-from .errors import SourceError
+from .errors import ConfigError, SourceError
 from .types import TouchEvent
 
 TRUTH_FORMAT = "depthtouch-truth/1"
@@ -344,10 +344,16 @@ def evaluate(
     still_step_mm / min_still_frames: a still run is >= min_still_frames consecutive matched
     frames whose true point moves less than still_step_mm per frame (defaults 0.05, 10).
     """
-    if gate_mm <= 0:
-        raise ValueError(f"gate_mm = {gate_mm} must be > 0")
+    if not gate_mm > 0:
+        raise ConfigError(f"gate_mm = {gate_mm} is out of range; give a gate > 0 mm")
     ev = _events_arrays(events)
-    n = max(truth.n_frames, int(ev.frame.max()) + 1 if ev.frame.size else 0)
+    # the pipeline's finish() may end touches with an `up` one frame after the last frame
+    if ev.frame.size and int(ev.frame.max()) > truth.n_frames:
+        raise SourceError(
+            f"events reach frame {int(ev.frame.max())} but the truth has {truth.n_frames} "
+            "frames; give the truth file of this recording"
+        )
+    n = truth.n_frames + 1
     K = truth.K
     c_f, h_f = truth.contact_frame, truth.hover_frame
     c_start, h_start = _slices(c_f, n), _slices(h_f, n)
@@ -461,8 +467,8 @@ def evaluate(
 
     return EvalResult(
         label=label or str(truth.meta.get("scene", "")),
-        n_frames=n,
-        duration_s=n / truth.fps,
+        n_frames=truth.n_frames,
+        duration_s=truth.duration_s,
         ep_id=arr("id", np.int64), ep_first=arr("first", np.int64),
         ep_last=arr("last", np.int64), ep_found=arr("found", bool),
         ep_frames_scored=arr("scored", np.int64), ep_frames_matched=arr("matched", np.int64),

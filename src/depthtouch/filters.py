@@ -310,8 +310,8 @@ class AdaptiveFilter(FilterBase):
 
     name = "adaptive"
     PARAMS = {
-        "min_cutoff_hz": Param(0.25, 0.0, 1000.0),
-        "half_weight_mm": Param(12.0, 0.0, 1000.0),
+        "min_cutoff_hz": Param(3.0, 0.0, 1000.0),
+        "half_weight_mm": Param(6.0, 0.0, 1000.0),
     }
     _FIELDS = {"v": (2,)}
 

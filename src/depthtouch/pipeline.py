@@ -15,6 +15,7 @@ import time
 from dataclasses import dataclass, field
 from typing import Any, Protocol
 
+import cv2
 import numpy as np
 
 from .adapt import SurfaceAdapter
@@ -115,6 +116,13 @@ class Pipeline:
         self._filter.reset()
 
     # --- per frame -------------------------------------------------------------------------
+    def _prefilter(self, frame: Frame) -> Frame:
+        k = self.config.regions.median_px
+        if k <= 1:
+            return frame
+        return Frame(cv2.medianBlur(frame.depth, k), frame.timestamp_s, frame.index,
+                     frame.depth_scale_m, frame.K)
+
     def process(self, frame: Frame) -> list[TouchEvent]:
         """The touch events of one frame (see the module doc)."""
         self.stats.frames += 1
@@ -122,6 +130,7 @@ class Pipeline:
             self.stats.learning_frames += 1
             if not self._frame_ok(frame, None):
                 return []
+            frame = self._prefilter(frame)
             try:
                 model = self._learner.update(frame)
             except SurfaceError as e:
@@ -137,6 +146,7 @@ class Pipeline:
         b = self._bounds
         assert b is not None
         t0 = time.perf_counter()
+        frame = self._prefilter(frame)
         if self._adapter is not None:
             touching = [t.xy_px for t in self._tracker.tracks if t.active]
             if self._adapter.update(frame.depth, frame.timestamp_s, np.array(touching)) == "bump":
@@ -153,7 +163,7 @@ class Pipeline:
         t4 = time.perf_counter()
         self.last_points = points
         self.last_timing_ms = {
-            "surface_update": (ta - t0) * 1e3, "regions": (t1 - ta) * 1e3, "touchpoints": (t2 - t1) * 1e3,
+            "prefilter_surface_update": (ta - t0) * 1e3, "regions": (t1 - ta) * 1e3, "touchpoints": (t2 - t1) * 1e3,
             "tracking": (t3 - t2) * 1e3, "filter_events": (t4 - t3) * 1e3,
             "total": (t4 - t0) * 1e3,
         }

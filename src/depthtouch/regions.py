@@ -115,12 +115,14 @@ class Regions:
     """Touch regions of one frame (parallel over the kept regions).
 
     bbox_xywh: (R, 4) int bounding boxes in the image; area_px: (R,) pixel counts;
-    masks: per region a uint8 mask (1 = in) of its bounding box.
+    masks: per region a uint8 mask (1 = in) of its bounding box;
+    band: the opened band mask of the whole frame (uint8, 255 = in), or None when empty.
     """
 
     bbox_xywh: np.ndarray
     area_px: np.ndarray
     masks: tuple[np.ndarray, ...]
+    band: np.ndarray | None = None
 
     @classmethod
     def empty(cls) -> Regions:
@@ -170,7 +172,7 @@ def find_regions(band: np.ndarray, bounds: BandBounds) -> Regions:
         masks.append(m)
     if not boxes:
         return Regions.empty()
-    return Regions(np.asarray(boxes, np.int64), np.asarray(areas, np.int64), tuple(masks))
+    return Regions(np.asarray(boxes, np.int64), np.asarray(areas, np.int64), tuple(masks), mask)
 
 
 def height_mm(

@@ -132,6 +132,23 @@ def plot_height_map(
     return _save(fig, plt, path)
 
 
+def plot_depth(depth_mm: np.ndarray, path: str | Path, *, title: str = "") -> Path:
+    """A raw depth frame (mm; 0 = missing, shown black) as a PNG."""
+    plt = _plt()
+    d = np.where(depth_mm > 0, depth_mm, np.nan).astype(np.float32)
+    fig, ax = plt.subplots(figsize=(6.4, 4.8), dpi=100)
+    finite = d[np.isfinite(d)]
+    lo, hi = (np.percentile(finite, [1, 99]) if finite.size else (0.0, 1.0))
+    cmap = plt.get_cmap("viridis").copy()
+    cmap.set_bad("black")
+    im = ax.imshow(d, cmap=cmap, vmin=lo, vmax=hi)
+    fig.colorbar(im, ax=ax, label="depth (mm)", shrink=0.8)
+    ax.set_title(title, fontsize=10)
+    ax.set_xlabel("x (px)")
+    ax.set_ylabel("y (px)")
+    return _save(fig, plt, path)
+
+
 def plot_paths(
     truth: Truth, events: Sequence[TouchEvent], path: str | Path, *, title: str = ""
 ) -> Path:
@@ -153,8 +170,17 @@ def plot_paths(
         ax.plot(a[:, 0], a[:, 1], ".-", color=cmap(k % 10), lw=1, ms=2)
     ax.plot([], [], "-", color="0.6", lw=4, label="truth")
     ax.plot([], [], ".-", color=cmap(0), lw=1, label="reported (one colour per id)")
-    ax.set_xlim(0, w)
-    ax.set_ylim(h, 0)
+    # zoom on where the touches are (with a margin), inside the image
+    pts = [truth.contact_xy_px] + [np.asarray(p) for p in by_id.values()]
+    allp = np.concatenate([p.reshape(-1, 2) for p in pts])
+    if allp.size:
+        lo = np.maximum(allp.min(axis=0) - 40.0, 0.0)
+        hi = np.minimum(allp.max(axis=0) + 40.0, [w, h])
+        ax.set_xlim(lo[0], hi[0])
+        ax.set_ylim(hi[1], lo[1])
+    else:
+        ax.set_xlim(0, w)
+        ax.set_ylim(h, 0)
     ax.set_aspect("equal")
     ax.legend(loc="lower right", fontsize=8)
     ax.set_title(title, fontsize=10)
@@ -250,6 +276,8 @@ def _run_scene(
         sink.send(Frame(rec.depth[0], 0.0, 0), events)
     res = evaluate(truth, events, timing_ms=timing, label=scene,
                    settle_frames=pipe.config.tracking.down_frames)
+    plot_depth(rec.depth[show].astype(np.float32) * (rec.depth_scale_m * 1000.0),
+               out / f"{scene}-depth.png", title=f"{scene}: depth frame {show} (input)")
     if height is not None:
         sel = truth.contact_frame == show
         plot_height_map(
@@ -325,7 +353,7 @@ def _demo_html(
     ]
     for s in scenes:
         parts.append(f"<h2>{html.escape(s)}</h2><div class='row'>")
-        for kind in ("height", "paths"):
+        for kind in ("depth", "height", "paths"):
             name = f"{s}-{kind}.png"
             parts.append(f"<img src='{name}' alt='{html.escape(s)} {kind}'>")
         link = f"<a href='{html.escape(s)}.events.jsonl'>events (JSON Lines)</a>"

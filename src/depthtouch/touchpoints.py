@@ -83,30 +83,120 @@ def find_touch_points(
     for mask, (bx, by, bw, bh), area in zip(regions.masks, regions.bbox_xywh, regions.area_px):
         x0, y0 = max(0, int(bx) - margin), max(0, int(by) - margin)
         x1, y1 = min(W, int(bx + bw) + margin), min(H, int(by + bh) + margin)
-        reg = np.zeros((y1 - y0, x1 - x0), np.uint8)
-        reg[by - y0:by - y0 + bh, bx - x0:bx - x0 + bw] = mask
-        attach = cv2.dilate(reg, k_attach) & high[y0:y1, x0:x1]
-        n_att, hx, hy = _centroid(attach)
-        if n_att < 2:
+        whole = np.zeros((y1 - y0, x1 - x0), np.uint8)
+        whole[by - y0:by - y0 + bh, bx - x0:bx - x0 + bw] = mask
+        hs: np.ndarray | None = None
+        # Other regions nearby: the finger may grow only into pixels nearer to it than to them.
+        own = None
+        others = None
+        if regions.band is not None and len(regions) > 1:
+            others = cv2.bitwise_and(regions.band[y0:y1, x0:x1], cv2.bitwise_not(whole * 255))
+        if others is not None and cv2.countNonZero(others):
+            seeds = cv2.bitwise_or(whole * 2, (others > 0).view(np.uint8))
+            _, nearest = cv2.distanceTransformWithLabels(
+                (seeds == 0).view(np.uint8), cv2.DIST_L2, 3, labelType=cv2.DIST_LABEL_PIXEL
+            )
+            # label of each seed pixel -> whether it belongs to this region
+            mine = np.zeros(int(nearest.max()) + 1, np.uint8)
+            mine[nearest[whole > 0]] = 1
+            own = mine[nearest]
+        attach_all = cv2.dilate(whole, k_attach) & high[y0:y1, x0:x1]
+        n_all, hx0, hy0 = _centroid(attach_all)
+        if n_all < 2:
             continue  # not attached to a hand: a flat object or noise
-        hand = np.array([hx, hy])
-        hs = _smooth_heights(depth, bounds, (x0, y0, x1 - x0, y1 - y0))
-        if config.method == "paper":
-            pt = _paper_point(reg, hs, hand, config)
-        else:
-            pt = _extremity_point(reg, hs, hand, r0, bounds.tl_mm[y0:y1, x0:x1], k_reach)
-        if pt is None:
-            continue
-        xy_out.append((pt[0] + x0, pt[1] + y0))
-        h_out.append(pt[2])
-        a_out.append(int(area))
-        hand_out.append((hx + x0, hy + y0))
+        parts = (_split_fingers(whole, np.array([hx0, hy0]), r0) if area > 6.0 * r0 * r0
+                 else [whole])
+        for reg in parts:
+            if len(parts) == 1:
+                n_att, hx, hy = n_all, hx0, hy0
+            else:
+                n_att, hx, hy = _centroid(cv2.dilate(reg, k_attach) & high[y0:y1, x0:x1])
+                if n_att < 2:
+                    n_att, hx, hy = n_all, hx0, hy0
+            hand = np.array([hx, hy])
+            if hs is None:
+                hs = _smooth_heights(depth, bounds, (x0, y0, x1 - x0, y1 - y0))
+            if config.method == "paper":
+                pt = _paper_point(reg, hs, hand, config)
+            else:
+                part_own = own
+                if len(parts) > 1:
+                    other_parts = cv2.bitwise_and(whole, cv2.bitwise_not(reg))
+                    part_own = _nearest_mask(reg, other_parts, own)
+                pt = _extremity_point(reg, hs, hand, r0, bounds.tl_mm[y0:y1, x0:x1], k_reach,
+                                      part_own)
+            if pt is None:
+                continue
+            xy_out.append((pt[0] + x0, pt[1] + y0))
+            h_out.append(pt[2])
+            a_out.append(int(area) if len(parts) == 1 else cv2.countNonZero(reg))
+            hand_out.append((hx + x0, hy + y0))
     if not xy_out:
         return TouchPoints.empty()
     return TouchPoints(
         np.asarray(xy_out, np.float64), np.asarray(h_out, np.float64),
         np.asarray(a_out, np.int64), np.asarray(hand_out, np.float64),
     )
+
+
+def _split_fingers(reg: np.ndarray, hand: np.ndarray, r0: float) -> list[np.ndarray]:
+    """Fingertips side by side merge into one region; split it between their tips.
+
+    Seen along the finger direction (from the hand), the front of the region, per 1-px lateral
+    slice, has one bump per fingertip (tips are round). Bumps at least 1.6 tip radii apart with
+    a dip of at least 0.8 radius between them are separate fingers: the region is cut at the
+    dips. A single fingertip has one bump and stays whole.
+    """
+    ys, xs = np.nonzero(reg)
+    c = np.array([xs.mean(), ys.mean()])
+    d = c - hand
+    n = float(np.hypot(d[0], d[1]))
+    if n < 1e-6:
+        return [reg]
+    d /= n
+    s = (xs - hand[0]) * d[0] + (ys - hand[1]) * d[1]
+    lat = (ys - hand[1]) * d[0] - (xs - hand[0]) * d[1]
+    lb = (lat - lat.min()).astype(np.intp)
+    front = np.full(int(lb.max()) + 1, -np.inf)
+    np.maximum.at(front, lb, s)
+    w = max(1, int(np.ceil(r0)))
+    padded = np.pad(front, w, constant_values=-np.inf)
+    win = np.lib.stride_tricks.sliding_window_view(padded, 2 * w + 1).max(axis=1)
+    peaks = np.flatnonzero((front == win) & np.isfinite(front))
+    cuts: list[int] = []
+    last = None
+    for p in peaks:
+        if last is not None and p - last >= 1.6 * r0:
+            seg = front[last:p + 1]
+            valley = int(np.argmin(seg))
+            if min(front[last], front[p]) - seg[valley] >= 0.8 * r0:
+                cuts.append(last + valley)
+                last = p
+                continue
+        if last is None or front[p] > front[last]:
+            last = p
+    if not cuts:
+        return [reg]
+    edges = [-1, *cuts, int(lb.max()) + 1]
+    parts = []
+    for lo, hi in zip(edges[:-1], edges[1:]):
+        sel = (lb > lo) & (lb <= hi) if hi != edges[-1] else (lb > lo)
+        part = np.zeros_like(reg)
+        part[ys[sel], xs[sel]] = 1
+        parts.append(part)
+    return parts
+
+
+def _nearest_mask(reg: np.ndarray, others: np.ndarray, base: np.ndarray | None) -> np.ndarray:
+    """Pixels nearer to ``reg`` than to ``others`` (and inside ``base`` when given)."""
+    seeds = cv2.bitwise_or(reg * 2, others)
+    _, nearest = cv2.distanceTransformWithLabels(
+        (seeds == 0).view(np.uint8), cv2.DIST_L2, 3, labelType=cv2.DIST_LABEL_PIXEL
+    )
+    mine = np.zeros(int(nearest.max()) + 1, np.uint8)
+    mine[nearest[reg > 0]] = 1
+    out = mine[nearest]
+    return out if base is None else cv2.bitwise_and(out, base)
 
 
 def _extremity_point(
@@ -116,6 +206,7 @@ def _extremity_point(
     r0: float,
     tl_mm: np.ndarray,
     k_reach: np.ndarray,
+    own: np.ndarray | None = None,
 ) -> tuple[float, float, float] | None:
     # The finger's shape near the tip: the region grown into raised pixels nearby on the
     # smoothed map (noise averaged over 9 px): the tip cap that Tl cut away, and the finger body
@@ -123,7 +214,10 @@ def _extremity_point(
     # Only what is connected to the region counts: the noise of stereo cameras is spatially
     # correlated, so a 3x3 mean does not remove blobs of it next to the tip.
     raised = hs > np.maximum(tl_mm * np.float32(0.5), np.float32(2.0))
-    grown = cv2.bitwise_or(reg, cv2.bitwise_and(raised.view(np.uint8), cv2.dilate(reg, k_reach)))
+    reach = cv2.dilate(reg, k_reach)
+    if own is not None:
+        reach = cv2.bitwise_and(reach, own)
+    grown = cv2.bitwise_or(reg, cv2.bitwise_and(raised.view(np.uint8), reach))
     n_lab, labels = cv2.connectedComponents(grown, connectivity=4)
     if n_lab > 2:
         keep = np.zeros(n_lab, np.uint8)

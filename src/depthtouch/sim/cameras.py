@@ -43,6 +43,8 @@ class CameraProfile:
     correlation_px: Gaussian correlation length of that share, pixels.
     dropout_rate: fraction of pixels randomly missing in each frame.
     flying_prob: probability that a depth-edge pixel is a flying pixel (ToF).
+    edge_jitter_prob: probability that a depth-edge pixel takes its neighbour's side (fore- or
+        background, 50/50) in a frame: lateral noise, edges wander by about a pixel.
     edge_dropout_prob: probability that a depth-edge pixel is missing.
     """
 
@@ -62,6 +64,7 @@ class CameraProfile:
     correlation_px: float = 2.0
     dropout_rate: float = 0.002
     flying_prob: float = 0.0
+    edge_jitter_prob: float = 0.0
     edge_dropout_prob: float = 0.0
 
     @property
@@ -103,14 +106,14 @@ PROFILES: dict[str, CameraProfile] = {
         fx_px=425.0, fy_px=425.0, cx_px=423.5, cy_px=239.5,
         min_range_mm=195.0, max_range_mm=10000.0, baseline_mm=50.0,
         bias_fraction=0.4, correlated_fraction=0.4, correlation_px=2.0,
-        dropout_rate=0.004, edge_dropout_prob=0.3,
+        dropout_rate=0.004, edge_jitter_prob=0.3, edge_dropout_prob=0.3,
     ),
     "kinect-v1": CameraProfile(
         name="kinect-v1", kind="structured-light", resolution_wh=(640, 480),
         fx_px=580.0, fy_px=580.0, cx_px=319.5, cy_px=239.5,
         min_range_mm=400.0, max_range_mm=4000.0, baseline_mm=75.0, disparity_step_px=0.125,
         bias_fraction=0.3, correlated_fraction=0.2, correlation_px=1.5,
-        dropout_rate=0.002, edge_dropout_prob=0.2,
+        dropout_rate=0.002, edge_jitter_prob=0.5, edge_dropout_prob=0.2,
     ),
 }
 
@@ -237,14 +240,16 @@ class NoiseModel:
             self._apply_box(z, eps, noisy, missing, box)
         if p.disparity_step_px > 0:
             fb = np.float32(p.fx_px * p.baseline_mm / p.disparity_step_px)
-            disp = np.rint(fb / np.maximum(noisy, np.float32(1.0)))
-            noisy = fb / np.maximum(disp, np.float32(1.0))
+            # pixels with no surface (z = 0) give inf or negative values here; they are masked
+            with np.errstate(divide="ignore", invalid="ignore"):
+                disp = np.rint(fb / noisy)
+                noisy = fb / disp
         k = self.rng.poisson(p.dropout_rate * self._n)
         if k:
             missing.reshape(-1)[self.rng.integers(0, self._n, k)] = True
-        noisy += np.float32(0.5)
-        np.clip(noisy, 0.0, 65535.0, out=noisy)
+        # every unmasked value is a depth within the profile's range (< 10 m): no clipping
         np.copyto(noisy, np.float32(0.0), where=missing)
+        noisy += np.float32(0.5)
         return noisy.astype(np.uint16)
 
     def _apply_box(self, z: np.ndarray, eps: np.ndarray, noisy: np.ndarray, missing: np.ndarray,
@@ -259,8 +264,10 @@ class NoiseModel:
         sigma, add, bad = self._maps(zb)
         nb = zb + add * eps[sl] + sigma * self.bias[sl]
         edge_missing, fly = self._edge_effects(zb, sigma, nb)
-        noisy[sl] = nb if fly is None else fly
-        missing[sl] |= bad | edge_missing
+        nb = nb if fly is None else fly
+        noisy[sl] = nb
+        # mixed or moved edge pixels can leave the range too
+        missing[sl] |= bad | edge_missing | (nb < p.min_range_mm) | (nb > p.max_range_mm)
         if p.baseline_mm > 0:
             # a pixel at x is hidden from the second view by a nearer pixel x' > x when
             # x' - x < d(x') - d(x) <= d(x'): only columns within the largest disparity to the
@@ -300,7 +307,7 @@ class NoiseModel:
     ) -> tuple[np.ndarray, np.ndarray | None]:
         """Missing pixels at depth edges, and (ToF) ``noisy`` with flying pixels mixed in."""
         p = self.profile
-        if p.flying_prob <= 0 and p.edge_dropout_prob <= 0:
+        if p.flying_prob <= 0 and p.edge_jitter_prob <= 0 and p.edge_dropout_prob <= 0:
             return np.zeros(z.shape, bool), None
         kernel = np.ones((3, 3), np.uint8)
         zf = np.where(z > 0, z, np.float32(p.max_range_mm))
@@ -309,7 +316,10 @@ class NoiseModel:
         # a jump well beyond the noise inside a 3x3 neighbourhood
         edges = (zmax - zmin) > (np.float32(20.0) + np.float32(6.0) * sigma)
         missing = np.zeros(z.shape, bool)
-        ey, ex = np.nonzero(edges)
+        # next to a missing pixel there is no far side to mix with: such edge pixels go missing
+        beside_hole = edges & (zmax >= np.float32(p.max_range_mm))
+        missing |= beside_hole
+        ey, ex = np.nonzero(edges & ~beside_hole)
         if ey.size == 0:
             return missing, None
         out = None
@@ -320,6 +330,15 @@ class NoiseModel:
             out = noisy.copy()
             out[fy, fx] = zmin[fy, fx] + alpha * (zmax[fy, fx] - zmin[fy, fx])
             ey, ex = ey[~fly], ex[~fly]
+        if p.edge_jitter_prob > 0 and noisy is not None and ey.size:
+            jit = self.rng.random(ey.size) < p.edge_jitter_prob
+            jy, jx = ey[jit], ex[jit]
+            side = np.where(self.rng.random(jy.size) < 0.5, zmin[jy, jx], zmax[jy, jx])
+            if out is None:
+                out = noisy.copy()
+            # keep the pixel's own noise, move it to the other side of the edge
+            out[jy, jx] = side + (noisy[jy, jx] - z[jy, jx])
+            ey, ex = ey[~jit], ex[~jit]
         if p.edge_dropout_prob > 0:
             drop = self.rng.random(ey.size) < p.edge_dropout_prob
             missing[ey[drop], ex[drop]] = True

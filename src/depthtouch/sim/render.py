@@ -116,8 +116,9 @@ def render_scene(
     world_surface = make_surface(surface, distance_m, tilt_deg)
     _validate_args(fps, seed)
     rays = Rays(profile.K, profile.resolution_wh)
-    root = np.random.default_rng(int(seed))
-    scene_rng, noise_rng = (np.random.default_rng(s) for s in root.spawn(2))
+    # independent streams for the script and the noise (SeedSequence works on numpy < 1.25)
+    scene_rng, noise_rng = (np.random.default_rng(s)
+                            for s in np.random.SeedSequence(int(seed)).spawn(2))
     script = build_script(scene, SceneContext(world_surface, rays, scene_rng))
     n = max(int(round(script.duration_s * fps)), 1)
     w, h = profile.resolution_wh
@@ -261,7 +262,8 @@ def _write_json_atomic(path: Path, doc: dict[str, Any]) -> None:
 def write_recording(rec: SimRecording, out: str | Path, truth_path: str | Path) -> None:
     """Write the depth as ``.npz`` (when ``out`` ends in .npz) or a PNG folder, and the truth JSON.
 
-    Both writes are atomic (temporary file or folder renamed into place).
+    Both targets are checked first; each write is atomic (temporary file or folder renamed into
+    place), and the truth is written last.
     """
     from ..sources import write_npz, write_png_folder
 
@@ -270,15 +272,23 @@ def write_recording(rec: SimRecording, out: str | Path, truth_path: str | Path) 
         raise SourceError(f"{out_p}: recording and truth need different paths; name them apart")
     if truth_p.suffix.lower() != ".json":
         raise SourceError(f"{truth_p}: the truth file must end in .json; e.g. taps.truth.json")
-    _write_json_atomic(truth_p, rec.truth)  # first: fails early on a bad folder
-    if out_p.suffix.lower() == ".npz":
-        write_npz(out_p, rec.depth, rec.timestamps_s, rec.depth_scale_m, rec.K)
-    elif out_p.suffix:
+    is_npz = out_p.suffix.lower() == ".npz"
+    if out_p.suffix and not is_npz:
         raise SourceError(
             f"{out_p}: unknown recording type {out_p.suffix!r}; give FILE.npz or a folder name"
         )
+    # check both targets before writing anything, so that a failure leaves nothing behind
+    for p in (out_p, truth_p):
+        parent = p.parent if str(p.parent) else Path(".")
+        if not parent.is_dir():
+            raise SourceError(f"{p}: folder {parent} does not exist; create it first")
+    if not is_npz and out_p.exists() and (not out_p.is_dir() or any(out_p.iterdir())):
+        raise SourceError(f"{out_p}: exists and is not an empty folder; choose a new folder")
+    if is_npz:
+        write_npz(out_p, rec.depth, rec.timestamps_s, rec.depth_scale_m, rec.K)
     else:
         write_png_folder(out_p, rec.depth, rec.timestamps_s, rec.depth_scale_m, rec.K, rec.fps)
+    _write_json_atomic(truth_p, rec.truth)  # last: a truth file means the pair is complete
 
 
 def _need(cond: bool, where: str, what: str) -> None:
