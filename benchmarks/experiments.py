@@ -55,6 +55,17 @@ def _fmt(v: float, f: str = "{:.3f}") -> str:
     return "-" if not math.isfinite(v) else f.format(v)
 
 
+def _git_head() -> str:
+    head = ROOT / ".git" / "HEAD"
+    try:
+        ref = head.read_text().strip()
+        if ref.startswith("ref: "):
+            return (ROOT / ".git" / ref[5:]).read_text().strip()[:10]
+        return ref[:10]
+    except OSError:
+        return "unknown"
+
+
 TARGETS = (
     ("contact recall", "contact_recall", ">=", 0.98),
     ("false touches from fingers hovering >= 25 mm", "hover_ge25", "<=", 0),
@@ -322,6 +333,8 @@ class Experiments:
             "",
             f"Machine: {platform.machine()}, {os.cpu_count()} cores, Python "
             f"{platform.python_version()}, numpy {np.__version__}, depthtouch {__version__}; "
+            f"run at {time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())} on the working tree "
+            f"of commit {_git_head()}; "
             f"{self.workers} worker processes; run took {total_s:.0f} s "
             f"({', '.join(f'{k} {v:.0f} s' for k, v in self.timings.items())}).",
             "",

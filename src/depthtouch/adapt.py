@@ -10,9 +10,9 @@ horizontal stripe of the image per frame (so the cost is spread evenly):
   attached to an arm that enters from outside the view, and the arm rises above the band), and
   anything within ``keep_out_mm`` of an active touch. A finger held still for minutes stays a
   finger;
-- when more than ``bump_fraction`` of the surface changes at once and stays so, still, for
-  ``bump_s``, the camera has moved: :meth:`SurfaceAdapter.update` says ``"bump"`` and the
-  pipeline learns the surface again.
+- when more than ``bump_fraction`` of the surface changes at once, touches are off; when it
+  stays so, still, for ``bump_s``, the camera has moved: :meth:`SurfaceAdapter.check` says
+  ``"bump"`` and the pipeline learns the surface again.
 """
 
 from __future__ import annotations
@@ -24,6 +24,7 @@ from .config import AdaptConfig
 from .regions import BandBounds, refresh_rows
 
 _SCALE = 4  # the whole-frame checks run on a 1/4 resolution view
+_BLOCK = 8  # the bump check compares 8x8 block means
 
 
 class SurfaceAdapter:
@@ -49,16 +50,78 @@ class SurfaceAdapter:
         self._visit_t = np.full(len(self._stripes) - 1, np.nan)
         self._exclude = np.zeros((h, w), bool)
         self._bump_since: float | None = None
-        self._small_prev: np.ndarray | None = None
+        self._coarse: tuple[np.ndarray, np.ndarray] | None = None
+        self._ref: np.ndarray | None = None
+        self._ref_t: float | None = None
+        self._prev_blocks: np.ndarray | None = None
+        self.changed_share = 0.0
 
-    def update(self, depth: np.ndarray, t: float, touch_xy_px: np.ndarray) -> str | None:
-        """Visit the next stripe; returns "bump" when the camera has moved, else None."""
+    def _block_means(self, img: np.ndarray, valid: np.ndarray) -> np.ndarray:
+        h, w = img.shape
+        size = (max(1, w // _BLOCK), max(1, h // _BLOCK))
+        num = cv2.resize(np.where(valid, img, 0).astype(np.float32), size, interpolation=cv2.INTER_AREA)
+        den = cv2.resize(valid.astype(np.float32), size, interpolation=cv2.INTER_AREA)
+        return np.where(den > 0.5, num / np.maximum(den, 1e-6), np.nan).astype(np.float32)
+
+    def check(self, depth: np.ndarray, t: float) -> str | None:
+        """Every frame: "bump" when the camera moved and the scene has settled (learn the
+        surface again), "disturbed" while touches are not to be trusted, else None.
+
+        Compares 8x8-pixel block means (averaging 64 pixels takes the noise down eightfold) with
+        a reference that follows the frames with a 2 s time constant. A sudden shift of most
+        blocks is a bump (or something large in front of the camera); a slow drift never is,
+        as the reference follows it. Touches stay off until the surface is learned again, or
+        until the frames match the surface once more (it was only passing by).
+        """
+        b = self.bounds
+        if self._coarse is None:
+            thr = self._block_means(b.tl_mm, b.valid)
+            self._coarse = (self._block_means(b.surface_mm, b.valid),
+                            np.maximum(np.float32(2.0), 0.5 * thr))
+        ss, thr = self._coarse
+        dm = depth.astype(np.float32) * np.float32(b.to_mm)
+        ds = self._block_means(dm, (depth > 0) & b.valid)
+        ref, last_t, prev = self._ref, self._ref_t, self._prev_blocks
+        self._prev_blocks = ds
+        if ref is None or last_t is None:
+            self._ref, self._ref_t = ds.copy(), t
+            return None
+        ok = np.isfinite(ds) & np.isfinite(ref) & np.isfinite(ss)
+        n_ok = int(np.count_nonzero(ok))
+        if n_ok == 0:
+            return None
+        sudden = np.count_nonzero(np.abs(ds - ref)[ok] > thr[ok]) / n_ok
+        vs_surface = np.count_nonzero(np.abs(ds - ss)[ok] > thr[ok]) / n_ok
+        self.changed_share = vs_surface
+        alpha = np.float32(min(1.0, max(0.0, t - last_t) / 2.0))
+        self._ref = np.where(np.isfinite(ref), ref + alpha * (ds - ref), ds)
+        self._ref_t = t
+        cfg = self.config
+        if sudden >= cfg.bump_fraction and self._bump_since is None:
+            self._bump_since = t
+        if self._bump_since is None:
+            return None
+        if vs_surface < cfg.bump_fraction:
+            self._bump_since = None  # it went away again
+            return None
+        still = prev is not None and float(
+            np.mean(np.abs(ds - prev)[ok & np.isfinite(prev)] > thr[ok & np.isfinite(prev)])
+        ) < 0.05
+        if not still:
+            self._bump_since = t
+        elif t - self._bump_since >= cfg.bump_s:
+            self._bump_since = None
+            return "bump"
+        return "disturbed"
+
+    def update(self, depth: np.ndarray, t: float, touch_xy_px: np.ndarray) -> None:
+        """Visit the next stripe: absorb still changes, follow drift (see the module doc)."""
         cfg, b = self.config, self.bounds
         k = self._k
         self._k = (k + 1) % (len(self._stripes) - 1)
-        verdict = None
         if k == 0:
-            verdict = self._whole_frame_checks(depth, t, touch_xy_px)
+            self._coarse = None  # the surface moved on: refresh the 1/8 view
+            self._exclusions(depth, touch_xy_px)
         y0, y1 = int(self._stripes[k]), int(self._stripes[k + 1])
         rows = slice(y0, y1)
         tt = np.float32(t - self._t0) if self._t0 is not None else np.float32(0)
@@ -92,9 +155,10 @@ class SurfaceAdapter:
         self._prev[rows] = dm
         self._have_prev[k] = True
         refresh_rows(b, y0, y1)
-        return verdict
 
-    def _whole_frame_checks(self, depth: np.ndarray, t: float, touch_xy_px: np.ndarray) -> str | None:
+    def _exclusions(self, depth: np.ndarray, touch_xy_px: np.ndarray) -> None:
+        """What must never be absorbed: changes connected to the image border, and the
+        surroundings of active touches (a 1/4 resolution view, once per stripe cycle)."""
         cfg, b = self.config, self.bounds
         h, w = depth.shape
         sw, sh = max(1, w // _SCALE), max(1, h // _SCALE)
@@ -118,16 +182,3 @@ class SurfaceAdapter:
             for x_px, y_px in np.asarray(touch_xy_px, np.float64):
                 cv2.circle(excl, (int(x_px / _SCALE), int(y_px / _SCALE)), r, 1, thickness=-1)
         self._exclude = cv2.resize(excl, (w, h), interpolation=cv2.INTER_NEAREST) > 0
-        # Camera bump: most of the surface changed, and the scene is still.
-        share = float(changed.sum()) / max(1, int(ok.sum()))
-        prev, self._small_prev = self._small_prev, ds
-        still = prev is not None and float(np.mean(np.abs(ds - prev)[ok] > 3 * tl[ok])) < 0.05
-        if share >= cfg.bump_fraction and still:
-            if self._bump_since is None:
-                self._bump_since = t
-            elif t - self._bump_since >= cfg.bump_s:
-                self._bump_since = None
-                return "bump"
-        elif share < cfg.bump_fraction:
-            self._bump_since = None
-        return None

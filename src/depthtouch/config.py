@@ -207,23 +207,23 @@ class AdaptConfig:
     still_mm: a pixel is still when it moves less than max(still_mm, 3 sigma) between two visits
         (default 3.0 mm).
     drift_tau_s: time constant of the slow update of unchanged pixels (temperature drift)
-        (default 30 s, range [1, 3600]).
+        (default 10 s, range [1, 3600]).
     stripes: the update visits one horizontal stripe of the image per frame, so that its cost is
         spread evenly over frames (default 12, range [1, 64]).
     bump_fraction: share of the surface changed at once that means the camera moved
         (default 0.5, range (0, 1]).
     bump_s: how long such a change must stay, still, before the surface is learned again
-        (default 1.0 s).
+        (default 0.5 s).
     keep_out_mm: nothing within this distance of an active touch is absorbed (default 80 mm).
     """
 
     enabled: bool = True
     absorb_s: float = 1.0
     still_mm: float = 3.0
-    drift_tau_s: float = 30.0
+    drift_tau_s: float = 10.0
     stripes: int = 12
     bump_fraction: float = 0.5
-    bump_s: float = 1.0
+    bump_s: float = 0.5
     keep_out_mm: float = 80.0
 
     def validate(self) -> None:

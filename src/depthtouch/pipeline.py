@@ -46,6 +46,7 @@ class PipelineStats:
     skipped_frames: int = 0
     events: int = 0
     relearns: int = 0
+    disturbed_frames: int = 0
     skip_reasons: dict[str, int] = field(default_factory=dict)
 
 
@@ -149,8 +150,18 @@ class Pipeline:
         frame = self._prefilter(frame)
         if self._adapter is not None:
             touching = [t.xy_px for t in self._tracker.tracks if t.active]
-            if self._adapter.update(frame.depth, frame.timestamp_s, np.array(touching)) == "bump":
+            self._adapter.update(frame.depth, frame.timestamp_s, np.array(touching))
+            verdict = self._adapter.check(frame.depth, frame.timestamp_s)
+            if verdict == "bump":
                 return self._relearn(frame)
+            if verdict == "disturbed":
+                # most of the surface changed at once: report no touches until it settles
+                self.stats.disturbed_frames += 1
+                self.last_points = TouchPoints.empty()
+                events = self._events(frame, self._tracker.end_all())
+                self.stats.events += len(events)
+                self._last_frame = frame
+                return events
         ta = time.perf_counter()
         band, high = band_masks(frame.depth, b)
         regions = find_regions(band, b)

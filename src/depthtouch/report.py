@@ -139,8 +139,7 @@ def plot_depth(depth_mm: np.ndarray, path: str | Path, *, title: str = "") -> Pa
     fig, ax = plt.subplots(figsize=(6.4, 4.8), dpi=100)
     finite = d[np.isfinite(d)]
     lo, hi = (np.percentile(finite, [1, 99]) if finite.size else (0.0, 1.0))
-    cmap = plt.get_cmap("viridis").copy()
-    cmap.set_bad("black")
+    cmap = plt.get_cmap("viridis").with_extremes(bad="black")
     im = ax.imshow(d, cmap=cmap, vmin=lo, vmax=hi)
     fig.colorbar(im, ax=ax, label="depth (mm)", shrink=0.8)
     ax.set_title(title, fontsize=10)
@@ -171,8 +170,9 @@ def plot_paths(
     ax.plot([], [], "-", color="0.6", lw=4, label="truth")
     ax.plot([], [], ".-", color=cmap(0), lw=1, label="reported (one colour per id)")
     # zoom on where the touches are (with a margin), inside the image
-    pts = [truth.contact_xy_px] + [np.asarray(p) for p in by_id.values()]
-    allp = np.concatenate([p.reshape(-1, 2) for p in pts])
+    arrays = [truth.contact_xy_px.reshape(-1, 2)]
+    arrays += [np.asarray(v, dtype=np.float64).reshape(-1, 2) for v in by_id.values()]
+    allp = np.concatenate(arrays)
     if allp.size:
         lo = np.maximum(allp.min(axis=0) - 40.0, 0.0)
         hi = np.minimum(allp.max(axis=0) + 40.0, [w, h])

@@ -404,11 +404,6 @@ def group_metrics(
     return {k: summarize(v) for k, v in groups.items()}
 
 
-def check_cache(cases: Iterable[SuiteCase], cache: Path | None = None) -> int:
-    """How many of ``cases`` still need rendering."""
-    return sum(not recording_paths(c, cache)[0].is_file() for c in cases)
-
-
 def default_workers() -> int:
     """Processes for a suite run: the usable cores, at most 4 (override with DEPTHTOUCH_WORKERS)."""
     env = os.environ.get("DEPTHTOUCH_WORKERS")

@@ -144,7 +144,7 @@ def _split_fingers(reg: np.ndarray, hand: np.ndarray, r0: float) -> list[np.ndar
 
     Seen along the finger direction (from the hand), the front of the region, per 1-px lateral
     slice, has one bump per fingertip (tips are round). Bumps at least 1.6 tip radii apart with
-    a dip of at least 0.8 radius between them are separate fingers: the region is cut at the
+    a dip of at least half a radius between them are separate fingers: the region is cut at the
     dips. A single fingertip has one bump and stays whole.
     """
     ys, xs = np.nonzero(reg)
@@ -169,7 +169,7 @@ def _split_fingers(reg: np.ndarray, hand: np.ndarray, r0: float) -> list[np.ndar
         if last is not None and p - last >= 1.6 * r0:
             seg = front[last:p + 1]
             valley = int(np.argmin(seg))
-            if min(front[last], front[p]) - seg[valley] >= 0.8 * r0:
+            if min(front[last], front[p]) - seg[valley] >= 0.5 * r0:
                 cuts.append(last + valley)
                 last = p
                 continue

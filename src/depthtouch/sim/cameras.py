@@ -197,6 +197,10 @@ class NoiseModel:
         sigma, add, bad = self._maps(z)
         self._static_add = add
         self._static_bias = sigma * self.bias
+        # surface pixels whose noise can cross a range limit are checked every frame
+        p = self.profile
+        near = ~bad & ((z - 6 * sigma < p.min_range_mm) | (z + 6 * sigma > p.max_range_mm))
+        self._near_limit = np.flatnonzero(near)
         missing = bad | self._edge_effects(z, sigma, None)[0]
         if self.profile.baseline_mm > 0:
             r = self._cols - np.float32(self.profile.fx_px * self.profile.baseline_mm) / \
@@ -244,6 +248,10 @@ class NoiseModel:
             with np.errstate(divide="ignore", invalid="ignore"):
                 disp = np.rint(fb / noisy)
                 noisy = fb / disp
+        if self._near_limit.size:
+            vals = noisy.reshape(-1)[self._near_limit]
+            out_of_range = (vals < p.min_range_mm) | (vals > p.max_range_mm)
+            missing.reshape(-1)[self._near_limit[out_of_range]] = True
         k = self.rng.poisson(p.dropout_rate * self._n)
         if k:
             missing.reshape(-1)[self.rng.integers(0, self._n, k)] = True
