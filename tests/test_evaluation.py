@@ -354,3 +354,23 @@ def test_bad_gate_is_a_config_error(gate: float) -> None:
 
     with pytest.raises(ConfigError, match="gate_mm"):
         evaluate(tap_truth(), [], gate_mm=gate)
+
+
+def test_occluded_contacts_leave_recall_and_frame_recall() -> None:
+    contacts = {f: [contact(1, 300, 200)] for f in range(5, 15)}
+    for f in range(20, 30):
+        contacts[f] = [dict(contact(2, 100, 100), occluded=True)]
+    for f in range(10, 15):  # the first contact is hidden in its last 5 frames
+        contacts[f][0]["occluded"] = True
+    t = truth_from_dict(doc(40, contacts))
+    m = summarize([evaluate(t, track(9, range(5, 10), (300, 200)), settle_frames=2)])
+    assert m.contacts == 1
+    assert m.occluded_contacts == 1
+    assert m.contact_recall == 1.0
+    assert m.frame_recall == 1.0  # frames 7, 8, 9 scored; the hidden 10..14 are not
+
+
+def test_occluded_must_be_a_bool() -> None:
+    d = doc(3, {1: [dict(contact(1, 300, 200), occluded="yes")]})
+    with pytest.raises(SourceError, match="occluded"):
+        truth_from_dict(d)

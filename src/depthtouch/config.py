@@ -85,6 +85,8 @@ class RegionConfig:
     min_area_floor_px: lower bound of S_min in pixels (default 4).
     open_px: side of the square opening applied to the band mask before labelling, which removes
         one-pixel noise and depth-edge slivers (default 3; 1 = off).
+    min_hand_mm2: a raised part not connected to the image border counts as a hand when at least
+        this large (default 6000 mm^2, a palm); see regions.hand_map.
     median_px: a median filter of this size (1 = off, 3 or 5) on every depth frame, the surface
         frames included, before anything else: it removes isolated missing pixels and flying
         pixels and halves stereo noise, so that Tl (which follows the filtered noise) can be low
@@ -99,6 +101,7 @@ class RegionConfig:
     min_area_floor_px: int = 4
     open_px: int = 3
     median_px: int = 3
+    min_hand_mm2: float = 6000.0
 
     def validate(self) -> None:
         _range("regions.noise_k", self.noise_k, 0.0, 20.0)
@@ -113,6 +116,7 @@ class RegionConfig:
         _range("regions.min_area_mm2", self.min_area_mm2, 0.0, 10000.0)
         _range("regions.min_area_floor_px", self.min_area_floor_px, 1, 10000)
         _range("regions.open_px", self.open_px, 1, 15)
+        _range("regions.min_hand_mm2", self.min_hand_mm2, 0.0, 1e6)
         if self.median_px not in (1, 3, 5):
             raise ConfigError(f"regions.median_px = {self.median_px!r} is not allowed; use 1, 3 or 5")
 
@@ -209,9 +213,9 @@ class AdaptConfig:
     drift_tau_s: time constant of the slow update of unchanged pixels (temperature drift)
         (default 10 s, range [1, 3600]).
     stripes: the update visits one horizontal stripe of the image per frame, so that its cost is
-        spread evenly over frames (default 12, range [1, 64]).
+        spread evenly over frames (default 24, range [1, 64]).
     bump_fraction: share of the surface changed at once that means the camera moved
-        (default 0.5, range (0, 1]).
+        (default 0.4, range (0, 1]).
     bump_s: how long such a change must stay, still, before the surface is learned again
         (default 0.5 s).
     keep_out_mm: nothing within this distance of an active touch is absorbed (default 80 mm).
@@ -221,8 +225,8 @@ class AdaptConfig:
     absorb_s: float = 1.0
     still_mm: float = 3.0
     drift_tau_s: float = 10.0
-    stripes: int = 12
-    bump_fraction: float = 0.5
+    stripes: int = 24
+    bump_fraction: float = 0.4
     bump_s: float = 0.5
     keep_out_mm: float = 80.0
 

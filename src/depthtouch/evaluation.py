@@ -46,6 +46,7 @@ class Truth:
     the recording (frame indices count from 0, including the empty frames). empty_frames: leading
     frames of the empty surface. contact_*: frame (M,), id (M,), xy_px (M, 2) projection,
     p_mm (M, 3) contact point in the camera frame, n (M, 3) unit surface normal there.
+    contact_occluded (M,): the truth marks the tip hidden from the camera in that frame.
     hover_*: frame (H,), id (H,), xy_px (H, 2), p_mm (H, 3) (the tip's closest point projected
     onto the surface), n (H, 3) (the optical axis, -z, when the truth gives none), height_mm (H,).
     meta: scene, seed, camera, surface and events of the document, as given.
@@ -60,6 +61,7 @@ class Truth:
     contact_xy_px: np.ndarray
     contact_p_mm: np.ndarray
     contact_n: np.ndarray
+    contact_occluded: np.ndarray
     hover_frame: np.ndarray
     hover_id: np.ndarray
     hover_xy_px: np.ndarray
@@ -127,6 +129,7 @@ def truth_from_dict(doc: Any, where: str = "truth") -> Truth:
     c_rows: list[list[float]] = []
     h_rows: list[list[float]] = []
     h_normals: list[list[float]] = []
+    c_occ: list[bool] = []
     last = -1
     for i, fr in enumerate(frames):
         if not isinstance(fr, dict) or "frame" not in fr:
@@ -138,8 +141,15 @@ def truth_from_dict(doc: Any, where: str = "truth") -> Truth:
                 "list frames in order"
             )
         last = f
-        for r in _rows(fr.get("contacts", []), _CONTACT_KEYS, f"{where}: frames[{i}].contacts"):
+        contacts = fr.get("contacts", [])
+        for j, r in enumerate(_rows(contacts, _CONTACT_KEYS, f"{where}: frames[{i}].contacts")):
             c_rows.append([f, *r])
+            occ = contacts[j].get("occluded", False)
+            if not isinstance(occ, bool):
+                raise SourceError(
+                    f"{where}: frames[{i}].contacts[{j}].occluded = {occ!r} must be true or false"
+                )
+            c_occ.append(occ)
         hovers = fr.get("hovers", [])
         for j, r in enumerate(_rows(hovers, _HOVER_KEYS, f"{where}: frames[{i}].hovers")):
             h_rows.append([f, *r])
@@ -161,6 +171,7 @@ def truth_from_dict(doc: Any, where: str = "truth") -> Truth:
         K=K, fps=fps, n_frames=last + 1, empty_frames=empty,
         contact_frame=c[:, 0].astype(np.int64), contact_id=c[:, 1].astype(np.int64),
         contact_xy_px=c[:, 2:4], contact_p_mm=c[:, 4:7], contact_n=cn,
+        contact_occluded=np.asarray(c_occ, dtype=bool),
         hover_frame=h[:, 0].astype(np.int64), hover_id=h[:, 1].astype(np.int64),
         hover_xy_px=h[:, 2:4], hover_p_mm=h[:, 4:7], hover_n=hn, hover_height_mm=h[:, 7],
         meta=meta,
@@ -274,8 +285,9 @@ def _slices(frames: np.ndarray, n_frames: int) -> np.ndarray:
 class EvalResult:
     """Raw, poolable numbers of one recording (see :func:`summarize`).
 
-    Per contact episode (E,): ep_id, ep_first/ep_last frame, ep_found, ep_frames_scored (contact
-    frames after the first ``settle_frames``), ep_frames_matched (of those), ep_down_latency and
+    Per contact episode (E,): ep_id, ep_first/ep_last frame, ep_found, ep_visible (the tip is
+    not hidden from the camera in at least one frame), ep_frames_scored (visible contact frames
+    after the first ``settle_frames``), ep_frames_matched (of those), ep_down_latency and
     ep_lift_latency (frames; NaN when not found / no ``up``), ep_id_switches, ep_path_mm (true
     path length), ep_angle_deg (mean angle error of a drag, NaN otherwise), ep_angle_steps.
     errors_mm: surface error of every matched (reported, contact) pair.
@@ -292,6 +304,7 @@ class EvalResult:
     ep_first: np.ndarray
     ep_last: np.ndarray
     ep_found: np.ndarray
+    ep_visible: np.ndarray
     ep_frames_scored: np.ndarray
     ep_frames_matched: np.ndarray
     ep_down_latency: np.ndarray
@@ -410,7 +423,7 @@ def evaluate(
     up_sel = ev.state == _STATE_CODE["up"]
     up_frame_of = dict(zip(ev.id[up_sel].tolist(), ev.frame[up_sel].tolist(), strict=True))
     out: dict[str, list[Any]] = {k: [] for k in (
-        "id", "first", "last", "found", "scored", "matched", "down", "lift", "switch", "path",
+        "id", "first", "last", "found", "visible", "scored", "matched", "down", "lift", "switch", "path",
         "angle", "steps")}
     sq_sum, sq_count = 0.0, 0
     for e in range(n_ep):
@@ -423,9 +436,11 @@ def evaluate(
         out["id"].append(int(truth.contact_id[rows[0]]))
         out["first"].append(int(fr[0]))
         out["last"].append(int(fr[-1]))
+        visible = ~truth.contact_occluded[rows]
         out["found"].append(bool(ok.any()))
-        out["scored"].append(int(max(len(rows) - settle_frames, 0)))
-        out["matched"].append(int(ok[settle_frames:].sum()))
+        out["visible"].append(bool(visible.any()))
+        out["scored"].append(int(visible[settle_frames:].sum()))
+        out["matched"].append(int((ok & visible)[settle_frames:].sum()))
         out["path"].append(float(steps.sum()))
         if ok.any():
             out["down"].append(float(fr[ok][0] - fr[0]))
@@ -471,6 +486,7 @@ def evaluate(
         duration_s=truth.duration_s,
         ep_id=arr("id", np.int64), ep_first=arr("first", np.int64),
         ep_last=arr("last", np.int64), ep_found=arr("found", bool),
+        ep_visible=arr("visible", bool),
         ep_frames_scored=arr("scored", np.int64), ep_frames_matched=arr("matched", np.int64),
         ep_down_latency=arr("down", float), ep_lift_latency=arr("lift", float),
         ep_id_switches=arr("switch", np.int64), ep_path_mm=arr("path", float),
@@ -494,7 +510,10 @@ def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
 class Metrics:
     """Pooled accuracy over one or more recordings (NaN where nothing was measured).
 
-    contact_recall: found episodes / episodes. frame_recall: matched / scored contact frames.
+    contacts: contact episodes the camera can see (the tip is not hidden in every frame);
+    occluded_contacts: episodes hidden throughout (left out of recall, as no camera sees them).
+    contact_recall: found / visible episodes. frame_recall: matched / scored contact frames
+    (visible frames after the debounce).
     false_touches: false tracks; false_per_min: per minute of recording.
     false_by_hover: false tracks per band of hover height (:func:`hover_band`, mm) and "other".
     false_hover_heights_mm: the hover height of each false track that came near a hover.
@@ -511,6 +530,7 @@ class Metrics:
     frames: int
     duration_s: float
     contacts: int
+    occluded_contacts: int
     contact_recall: float
     frame_recall: float
     false_touches: int
@@ -575,7 +595,8 @@ def summarize(results: Sequence[EvalResult]) -> Metrics:
     def cat(name: str) -> np.ndarray:
         return np.concatenate([np.asarray(getattr(r, name)) for r in results])
 
-    found = cat("ep_found")
+    visible = cat("ep_visible")
+    found = cat("ep_found")[visible]
     scored = int(cat("ep_frames_scored").sum())
     duration = float(sum(r.duration_s for r in results))
     fh = cat("false_hover_height_mm")
@@ -594,6 +615,7 @@ def summarize(results: Sequence[EvalResult]) -> Metrics:
         frames=int(sum(r.n_frames for r in results)),
         duration_s=duration,
         contacts=int(found.size),
+        occluded_contacts=int(np.count_nonzero(~visible)),
         contact_recall=float(found.mean()) if found.size else math.nan,
         frame_recall=float(cat("ep_frames_matched").sum() / scored) if scored else math.nan,
         false_touches=int(fh.size),

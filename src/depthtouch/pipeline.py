@@ -149,7 +149,9 @@ class Pipeline:
         t0 = time.perf_counter()
         frame = self._prefilter(frame)
         if self._adapter is not None:
-            touching = [t.xy_px for t in self._tracker.tracks if t.active]
+            # keep the surroundings of touches of arms reaching in from the border: a finger held
+            # still is never absorbed; a "touch" on something standing on the surface is
+            touching = [t.xy_px for t in self._tracker.tracks if t.active and t.hand_at_border]
             self._adapter.update(frame.depth, frame.timestamp_s, np.array(touching))
             verdict = self._adapter.check(frame.depth, frame.timestamp_s)
             if verdict == "bump":
@@ -174,7 +176,8 @@ class Pipeline:
         t4 = time.perf_counter()
         self.last_points = points
         self.last_timing_ms = {
-            "prefilter_surface_update": (ta - t0) * 1e3, "regions": (t1 - ta) * 1e3, "touchpoints": (t2 - t1) * 1e3,
+            "prefilter_surface_update": (ta - t0) * 1e3, "regions": (t1 - ta) * 1e3,
+            "touchpoints": (t2 - t1) * 1e3,
             "tracking": (t3 - t2) * 1e3, "filter_events": (t4 - t3) * 1e3,
             "total": (t4 - t0) * 1e3,
         }

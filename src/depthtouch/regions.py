@@ -42,6 +42,8 @@ class BandBounds:
     open_px: int
     tu_mm: float
     hand_max_mm: float
+    valid_u8: np.ndarray | None = None
+    min_hand_mm2: float = 6000.0
 
 
 def _depth_bounds(
@@ -89,6 +91,7 @@ def band_bounds(surface: SurfaceModel, config: RegionConfig, tip_radius_mm: floa
         factor=f, tl_mm=tl, surface_mm=surface_mm, sigma_mm=surface.sigma_mm,
         valid=surface.valid, to_mm=to_mm, mm_per_px=mm_px, min_area_px=min_area,
         open_px=open_px, tu_mm=cfg.tu_mm, hand_max_mm=cfg.hand_max_mm,
+        valid_u8=surface.valid.astype(np.uint8) * np.uint8(255), min_hand_mm2=cfg.min_hand_mm2,
     )
 
 
@@ -173,6 +176,58 @@ def find_regions(band: np.ndarray, bounds: BandBounds) -> Regions:
     if not boxes:
         return Regions.empty()
     return Regions(np.asarray(boxes, np.int64), np.asarray(areas, np.int64), tuple(masks), mask)
+
+
+HAND_SCALE = 4  # the hand map is kept at 1/4 resolution
+
+
+def hand_map(high: np.ndarray, depth: np.ndarray, bounds: BandBounds) -> np.ndarray:
+    """Where hands are: parts above Tu connected to the image border, at 1/4 resolution (uint8:
+    2 = connected to the border, 1 = large enough to be a hand, 0 = no hand).
+
+    People reach into the view from outside it, so a hand is normally attached, through its arm,
+    to the border; an object standing on the surface, tall or not, is not. Where the view is so
+    wide that a whole arm is in it, a raised part of at least ``min_hand_mm2`` counts too (a tall
+    object that large counts until the surface absorbs it, about a second after it was put
+    down). Missing depth over a usable surface pixel counts as raised too: an arm close to the
+    camera is often nearer than the camera can measure. The mask is dilated before it is sampled so that a thin finger does
+    not fall apart at 1/4 resolution.
+    """
+    h, w = high.shape
+    if bounds.valid_u8 is None:
+        raise ValueError("hand_map: bounds without valid_u8")
+    raised = cv2.bitwise_or(high, cv2.bitwise_and(cv2.inRange(depth, 0, 0), bounds.valid_u8))
+    small = cv2.resize(cv2.dilate(raised, _kernel(3)), (max(1, w // HAND_SCALE), max(1, h // HAND_SCALE)),
+                       interpolation=cv2.INTER_NEAREST)
+    n, labels, stats, _ = cv2.connectedComponentsWithStats(small, connectivity=8, ltype=cv2.CV_16U)
+    sh, sw = small.shape
+    x, y, bw, bh = stats[:, 0], stats[:, 1], stats[:, 2], stats[:, 3]
+    big = stats[:, cv2.CC_STAT_AREA] * (HAND_SCALE * bounds.mm_per_px) ** 2 >= bounds.min_hand_mm2
+    at_border = (x == 0) | (y == 0) | (x + bw >= sw) | (y + bh >= sh)
+    border = np.where(at_border, 2, np.where(big, 1, 0)).astype(np.uint8)
+    border[0] = 0
+    # one more coarse pixel around it: the coarse grid must not cut off the last pixels of an
+    # arm next to a fingertip (the caller intersects with the full-resolution mask)
+    return cv2.dilate(border[labels], _kernel(3))
+
+
+def hand_window(
+    hands: np.ndarray, x0: int, y0: int, x1: int, y1: int, level: int = 1
+) -> np.ndarray:
+    """The hand map over the full-resolution window [y0:y1, x0:x1] (uint8, 255 where the map is
+    at least ``level``)."""
+    s = HAND_SCALE
+    sy0, sx0 = y0 // s, x0 // s
+    sy1, sx1 = min(hands.shape[0], -(-y1 // s)), min(hands.shape[1], -(-x1 // s))
+    block = hands[sy0:sy1, sx0:sx1]
+    if block.size == 0:
+        return np.zeros((y1 - y0, x1 - x0), np.uint8)
+    up = np.repeat(np.repeat(block, s, axis=0), s, axis=1)
+    oy, ox = y0 - sy0 * s, x0 - sx0 * s
+    out = np.zeros((y1 - y0, x1 - x0), np.uint8)
+    part = up[oy:oy + (y1 - y0), ox:ox + (x1 - x0)]
+    out[:part.shape[0], :part.shape[1]] = (part >= level).view(np.uint8) * np.uint8(255)
+    return out
 
 
 def height_mm(

@@ -29,6 +29,7 @@ if TYPE_CHECKING:
 COLUMNS: tuple[tuple[str, str, str], ...] = (
     ("recordings", "recs", "{:d}"),
     ("contacts", "contacts", "{:d}"),
+    ("occluded_contacts", "hidden", "{:d}"),
     ("contact_recall", "recall", "{:.3f}"),
     ("frame_recall", "frame rec", "{:.3f}"),
     ("false_touches", "false", "{:d}"),
@@ -346,7 +347,8 @@ def _demo_html(
         "matched to the simulator's ground truth (20 mm gate on the surface). "
         f"Total time {seconds:.1f} s.</p>",
         "<h2>Accuracy</h2>", metrics_html(metrics, "scene"),
-        "<p>recall: true contacts found; frame rec: contact frames matched (after the debounce); "
+        "<p>contacts: true contacts the camera can see (hidden: tip never visible, left out); "
+        "recall: true contacts found; frame rec: contact frames matched (after the debounce); "
         "false: reported touches matching no contact; hover&gt;=25: of those, from fingers "
         "hovering 25 mm or higher; err: distance on the surface; lat: frames; angle: drag-path "
         "angle error; jitter: still finger, RMS.</p>",

@@ -23,7 +23,7 @@ import cv2
 import numpy as np
 
 from .config import TouchPointConfig
-from .regions import BandBounds, Regions
+from .regions import BandBounds, Regions, hand_map, hand_window
 from .types import TouchPoints
 
 _K3 = np.ones((3, 3), np.uint8)
@@ -70,16 +70,19 @@ def find_touch_points(
     """Touch points of the regions of one frame (pure; see the module doc)."""
     if len(regions) == 0:
         return TouchPoints.empty()
+    hands = hand_map(high, depth, bounds)
     H, W = depth.shape
     r0 = config.tip_radius_mm / bounds.mm_per_px
     margin = int(np.ceil(3.0 * r0)) + 3
     k_attach = cv2.getStructuringElement(cv2.MORPH_RECT, (5, 5))
+    min_attach = 3.0
     rr = max(1, int(round(r0)))
     k_reach = cv2.getStructuringElement(cv2.MORPH_RECT, (4 * rr + 1, 4 * rr + 1))
     xy_out: list[tuple[float, float]] = []
     h_out: list[float] = []
     a_out: list[int] = []
     hand_out: list[tuple[float, float]] = []
+    border_out: list[bool] = []
     for mask, (bx, by, bw, bh), area in zip(regions.masks, regions.bbox_xywh, regions.area_px):
         x0, y0 = max(0, int(bx) - margin), max(0, int(by) - margin)
         x1, y1 = min(W, int(bx + bw) + margin), min(H, int(by + bh) + margin)
@@ -100,18 +103,24 @@ def find_touch_points(
             mine = np.zeros(int(nearest.max()) + 1, np.uint8)
             mine[nearest[whole > 0]] = 1
             own = mine[nearest]
-        attach_all = cv2.dilate(whole, k_attach) & high[y0:y1, x0:x1]
+        # The hand: pixels above Tu next to the region that belong to an arm reaching in from
+        # the image border (not an object standing on the surface, not a noisy pixel).
+        hand_roi = cv2.bitwise_and(high[y0:y1, x0:x1], hand_window(hands, x0, y0, x1, y1))
+        arm_roi = hand_window(hands, x0, y0, x1, y1, level=2)
+        attach_all = cv2.bitwise_and(cv2.dilate(whole, k_attach), hand_roi)
         n_all, hx0, hy0 = _centroid(attach_all)
-        if n_all < 2:
+        if n_all < min_attach:
             continue  # not attached to a hand: a flat object or noise
+        if _is_sliver(whole, np.array([hx0, hy0]), r0):
+            continue  # a thin strip along the side of something raised: an edge, not a finger
         parts = (_split_fingers(whole, np.array([hx0, hy0]), r0) if area > 6.0 * r0 * r0
                  else [whole])
         for reg in parts:
             if len(parts) == 1:
                 n_att, hx, hy = n_all, hx0, hy0
             else:
-                n_att, hx, hy = _centroid(cv2.dilate(reg, k_attach) & high[y0:y1, x0:x1])
-                if n_att < 2:
+                n_att, hx, hy = _centroid(cv2.bitwise_and(cv2.dilate(reg, k_attach), hand_roi))
+                if n_att < min_attach:
                     n_att, hx, hy = n_all, hx0, hy0
             hand = np.array([hx, hy])
             if hs is None:
@@ -131,12 +140,33 @@ def find_touch_points(
             h_out.append(pt[2])
             a_out.append(int(area) if len(parts) == 1 else cv2.countNonZero(reg))
             hand_out.append((hx + x0, hy + y0))
+            border_out.append(bool(cv2.countNonZero(cv2.bitwise_and(
+                cv2.bitwise_and(cv2.dilate(reg, k_attach), hand_roi), arm_roi))))
     if not xy_out:
         return TouchPoints.empty()
     return TouchPoints(
         np.asarray(xy_out, np.float64), np.asarray(h_out, np.float64),
         np.asarray(a_out, np.int64), np.asarray(hand_out, np.float64),
+        np.asarray(border_out, bool),
     )
+
+
+def _is_sliver(reg: np.ndarray, hand: np.ndarray, r0: float) -> bool:
+    """A region that is short away from the hand (under a tip radius), or short away from it but
+    long beside it: the band along the edge of an arm or an object (mixed depths at its
+    silhouette), not a fingertip, which sticks out of the hand by at least its radius."""
+    ys, xs = np.nonzero(reg)
+    c = np.array([xs.mean(), ys.mean()])
+    d = c - hand
+    n = float(np.hypot(d[0], d[1]))
+    if n < 1e-6:
+        return False
+    d /= n
+    s = (xs - hand[0]) * d[0] + (ys - hand[1]) * d[1]
+    lat = (ys - hand[1]) * d[0] - (xs - hand[0]) * d[1]
+    along = float(s.max() - s.min()) + 1.0
+    across = float(lat.max() - lat.min()) + 1.0
+    return along < r0 or (along < 1.5 * r0 and across > 3.0 * along)
 
 
 def _split_fingers(reg: np.ndarray, hand: np.ndarray, r0: float) -> list[np.ndarray]:
@@ -170,7 +200,7 @@ def _split_fingers(reg: np.ndarray, hand: np.ndarray, r0: float) -> list[np.ndar
             seg = front[last:p + 1]
             valley = int(np.argmin(seg))
             if min(front[last], front[p]) - seg[valley] >= 0.5 * r0:
-                cuts.append(last + valley)
+                cuts.append(int(last) + valley)
                 last = p
                 continue
         if last is None or front[p] > front[last]:

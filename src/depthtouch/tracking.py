@@ -36,6 +36,7 @@ class Track:
     active: bool = False
     vel: np.ndarray = field(default_factory=lambda: np.zeros(2))
     out_xy: np.ndarray | None = None  # last reported (filtered) position
+    hand_at_border: bool = True
 
     def predicted(self) -> np.ndarray:
         """Where the contact should be this frame (constant velocity per frame)."""
@@ -80,6 +81,8 @@ class Tracker:
         scale = self.scale_mm_per_px if self.scale_mm_per_px is not None else 1.0
         pos = points.xy_px * scale
         h = points.height_mm
+        border = ([True] * len(points) if points.hand_at_border is None
+                  else [bool(b) for b in points.hand_at_border])
         ok_cont = np.nan_to_num(h, nan=np.inf) <= self.touch.touch_off_mm
         ok_new = np.nan_to_num(h, nan=np.inf) <= self.touch.touch_on_mm
         n_t, n_p = len(self.tracks), len(points)
@@ -110,6 +113,7 @@ class Tracker:
                 t.vel = step if t.seen == 1 else 0.5 * t.vel + 0.5 * step
                 t.xy_px, t.pos = points.xy_px[j].copy(), pos[j].copy()
                 t.height_mm, t.area_px = float(h[j]), int(points.area_px[j])
+                t.hand_at_border = border[j]
                 t.seen += 1
                 t.missing = 0
                 if t.active:
@@ -129,7 +133,8 @@ class Tracker:
         for j in range(n_p):
             if j in used or not ok_new[j]:
                 continue
-            t = Track(points.xy_px[j].copy(), pos[j].copy(), float(h[j]), int(points.area_px[j]))
+            t = Track(points.xy_px[j].copy(), pos[j].copy(), float(h[j]), int(points.area_px[j]),
+                      hand_at_border=border[j])
             if self.config.down_frames <= 1:
                 self._activate(t)
                 out.append(TrackUpdate(t, "down", True))

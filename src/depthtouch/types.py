@@ -61,12 +61,15 @@ class TouchPoints:
     height_mm: (N,) height of the touching pixel above the surface.
     area_px: (N,) pixel count of the touch region.
     hand_xy_px: (N, 2) centroid of the attached hand/arm part (NaN when none was seen).
+    hand_at_border: (N,) bool, the hand is connected to the image border (an arm reaching in);
+        None means unknown (taken as True).
     """
 
     xy_px: np.ndarray
     height_mm: np.ndarray
     area_px: np.ndarray
     hand_xy_px: np.ndarray
+    hand_at_border: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         n = self.xy_px.shape[0] if self.xy_px.ndim == 2 else -1
@@ -74,6 +77,8 @@ class TouchPoints:
         _check_shape("TouchPoints.height_mm", self.height_mm, (n,))
         _check_shape("TouchPoints.area_px", self.area_px, (n,))
         _check_shape("TouchPoints.hand_xy_px", self.hand_xy_px, (n, 2))
+        if self.hand_at_border is not None:
+            _check_shape("TouchPoints.hand_at_border", self.hand_at_border, (n,))
 
     @classmethod
     def empty(cls) -> TouchPoints:
@@ -83,8 +88,10 @@ class TouchPoints:
         return int(self.xy_px.shape[0])
 
     def __getitem__(self, index: np.ndarray | slice) -> TouchPoints:
+        border = None if self.hand_at_border is None else self.hand_at_border[index]
         return TouchPoints(
-            self.xy_px[index], self.height_mm[index], self.area_px[index], self.hand_xy_px[index]
+            self.xy_px[index], self.height_mm[index], self.area_px[index], self.hand_xy_px[index],
+            border,
         )
 
 
