@@ -369,8 +369,6 @@ def test_png_folder_and_npz_give_the_same_events(
     assert a.read_text() == b.read_text() != ""
 
 
-@pytest.mark.xfail(strict=True, reason="runner/pipeline: a recording without valid depth logs a "
-                   "warning line and then blames the length; see the helper report")
 def test_recording_without_valid_depth_says_so_in_one_line(tmp_path: Path) -> None:
     """All-zero depth: the surface cannot be learned. Run as a real process, so that a logging
     warning printed by Python's last-resort handler counts as a second stderr line."""

@@ -400,6 +400,8 @@ def load_calibration(path: str | Path) -> Calibration:
         raise CalibrationError(
             f"calibration file {p} is not valid JSON (line {e.lineno}); recalibrate"
         ) from None
+    except RecursionError:
+        raise CalibrationError(f"calibration file {p} is nested too deeply; recalibrate") from None
     return calibration_from_dict(data, str(p))
 
 
@@ -420,6 +422,8 @@ def load_point_pairs(path: str | Path) -> tuple[np.ndarray, np.ndarray, tuple[in
         raise CalibrationError(
             f"point-pairs file {p} is not valid JSON (line {e.lineno}); fix the syntax"
         ) from None
+    except RecursionError:
+        raise CalibrationError(f"point-pairs file {p} is nested too deeply; fix it") from None
     screen_wh: tuple[int, int] | None = None
     try:
         if isinstance(data, list):

@@ -117,8 +117,11 @@ class RegionConfig:
         _range("regions.min_area_floor_px", self.min_area_floor_px, 1, 10000)
         _range("regions.open_px", self.open_px, 1, 15)
         _range("regions.min_hand_mm2", self.min_hand_mm2, 0.0, 1e6)
+        _range("regions.median_px", self.median_px, 1, 5)
         if self.median_px not in (1, 3, 5):
-            raise ConfigError(f"regions.median_px = {self.median_px!r} is not allowed; use 1, 3 or 5")
+            raise ConfigError(
+                f"regions.median_px = {self.median_px!r} must be odd; allowed [1, 5]: 1, 3 or 5"
+            )
 
 
 @dataclass(frozen=True)

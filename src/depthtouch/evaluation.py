@@ -198,6 +198,8 @@ def read_truth(path: str | Path) -> Truth:
         doc = json.loads(text)
     except json.JSONDecodeError as e:
         raise SourceError(f"{p}: not valid JSON ({e.msg} at line {e.lineno}); fix the file") from e
+    except RecursionError:
+        raise SourceError(f"{p}: JSON nested too deeply; regenerate it with depthtouch sim") from None
     return truth_from_dict(doc, str(p))
 
 

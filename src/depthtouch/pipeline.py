@@ -20,7 +20,7 @@ import numpy as np
 
 from .adapt import SurfaceAdapter
 from .config import PipelineConfig
-from .errors import SurfaceError
+from .errors import SourceError, SurfaceError
 from .filters import TouchFilter, make_filter
 from .regions import BandBounds, band_bounds, band_masks, find_regions, height_mm
 from .surface import SurfaceLearner, SurfaceModel
@@ -57,6 +57,8 @@ class Pipeline:
     surface: a saved surface model; when None it is learned from the first frames.
     calibration: maps depth px to screen px; adds ``sx``, ``sy`` to events when given.
     surface_frames: learn the surface from this many frames (overrides the config's seconds).
+    strict: raise on a frame that cannot be used (replaying a file: the file is wrong) instead of
+        skipping it with one warning (a live camera: the next frame may be fine).
     """
 
     def __init__(
@@ -66,8 +68,10 @@ class Pipeline:
         surface: SurfaceModel | None = None,
         calibration: ScreenMapping | None = None,
         surface_frames: int | None = None,
+        strict: bool = False,
     ) -> None:
         self.config = (config or PipelineConfig()).validate()
+        self.strict = strict
         self.calibration = calibration
         self._surface_frames = surface_frames
         self.stats = PipelineStats()
@@ -135,6 +139,8 @@ class Pipeline:
             try:
                 model = self._learner.update(frame)
             except SurfaceError as e:
+                if self.strict:
+                    raise
                 self._skip("learning", str(e))
                 self._learner.reset()
                 return []
@@ -279,6 +285,8 @@ class Pipeline:
         return True
 
     def _skip(self, reason: str, message: str) -> bool:
+        if self.strict:
+            raise SourceError(f"{message}; the recording cannot be used as it is")
         self.stats.skipped_frames += 1
         self.stats.skip_reasons[reason] = self.stats.skip_reasons.get(reason, 0) + 1
         if reason not in self._warned:

@@ -155,7 +155,7 @@ def replay(
                 f"{save_surface_path}: folder {parent} does not exist; create it first"
             )
     pipeline = Pipeline(cfg, surface=surface, calibration=calibration,  # type: ignore[arg-type]
-                        surface_frames=surface_frames)
+                        surface_frames=surface_frames, strict=True)
     with contextlib.ExitStack() as stack:
         source = stack.enter_context(open_source(recording))
         _check_surface_fits(source, surface, surface_frames, cfg)

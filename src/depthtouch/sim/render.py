@@ -309,6 +309,8 @@ def load_truth(path: str | Path) -> dict[str, Any]:
         doc = json.loads(p.read_text(encoding="utf-8"))
     except (OSError, UnicodeDecodeError, json.JSONDecodeError) as e:
         raise SourceError(f"{p}: not valid JSON ({e}); regenerate it with depthtouch sim") from e
+    except RecursionError:
+        raise SourceError(f"{p}: JSON nested too deeply; regenerate it with depthtouch sim") from None
     where = str(p)
     _need(isinstance(doc, dict), where, "must be a JSON object")
     _need(doc.get("format") == TRUTH_FORMAT, where,
