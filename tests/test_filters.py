@@ -226,7 +226,10 @@ def test_adaptive_follows_a_jump_and_smooths_noise():
     t = np.arange(60) / 30
     still = 100.0 + rng.normal(0, 2.0, (60, 2))
     out = _run(make_filter("adaptive"), t, still)
-    assert np.std(out[30:], axis=0).max() < 0.5 * np.std(still[30:], axis=0).min()
+    # shipped parameters favour little lag (docs/filters.md): 2 mm still noise is cut by ~13 %
+    assert np.std(out[30:], axis=0).max() < 0.9 * np.std(still[30:], axis=0).min()
+    smooth = _run(make_filter("adaptive", min_cutoff_hz=0.25, half_weight_mm=12.0), t, still)
+    assert np.std(smooth[30:], axis=0).max() < 0.5 * np.std(still[30:], axis=0).min()
     f = make_filter("adaptive")
     _run(f, t, np.full((60, 2), 100.0))
     jumped = f.update(np.array([0]), np.array([[160.0, 100.0]]), 2.0 + 1 / 30)
