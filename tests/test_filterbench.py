@@ -251,7 +251,10 @@ def test_cli_bench_filters_bad_figure_path(capsys, tmp_path):
 
 @pytest.mark.slow
 def test_tuning_reproduces_the_shipped_defaults():
-    """The shipped parameters are what the tuner picks on the tuning seeds (one-frame budget)."""
+    """The shipped parameters are what the tuner picks on the tuning seeds (one-frame budget),
+    except the adaptive filter's, chosen on full depth frames (docs/filters.md)."""
     paths = simulate_paths(TUNE_SEED, fps_hz=30.0, per_kind=8)
     tuned = tune_filters(paths, max_added_lag_ms=1000.0 / 30.0)
-    assert tuned == {name: make_filter(name).params for name in FILTERS}
+    shipped = {name: make_filter(name).params for name in FILTERS}
+    shipped["adaptive"] = {"min_cutoff_hz": 0.25, "half_weight_mm": 12.0}
+    assert tuned == shipped

@@ -300,12 +300,13 @@ class AdaptiveFilter(FilterBase):
     steady-state Kalman filter for that weight (Benedict–Bordner, ``β = w²/(2 − w)``).
 
     min_cutoff_hz: sets w0 from the frame interval, w0 = dt/(dt + 1/(2π·fc)), so the smoothing
-        of a still finger is the same at 30, 60 or 90 fps; range (0, 1000], default 0.25
-        (tuned; the weight is then set almost only by the innovation).
+        of a still finger is the same at 30, 60 or 90 fps; range (0, 1000], default 3.0.
     half_weight_mm: innovation at which w is halfway between w0 and 1, range (0, 1000],
-        default 12.0: about four times the RMS innovation that 1–3 mm of touch-point noise
-        gives, so noise alone barely raises the weight, while a turn at 0.3 m/s (10 mm off the
-        prediction per 30 fps frame) gets w ≈ 0.5 at once; tuned on simulated paths.
+        default 6.0: a few times the RMS innovation of the ~1 mm touch-point noise measured on
+        full depth frames, so noise alone barely raises the weight while a turn or a speed
+        change (a few mm off the prediction per 30 fps frame) is followed at once. Both defaults
+        were chosen on full depth frames, where lag shows as position error (docs/filters.md);
+        0.25 Hz and 12 mm smooth more and suit point paths with 1-3 mm noise.
     """
 
     name = "adaptive"
