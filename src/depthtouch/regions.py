@@ -211,22 +211,20 @@ def hand_map(high: np.ndarray, depth: np.ndarray, bounds: BandBounds) -> np.ndar
     return cv2.dilate(border[labels], _kernel(3))
 
 
-def hand_window(
-    hands: np.ndarray, x0: int, y0: int, x1: int, y1: int, level: int = 1
-) -> np.ndarray:
-    """The hand map over the full-resolution window [y0:y1, x0:x1] (uint8, 255 where the map is
-    at least ``level``)."""
+def hand_window(hands: np.ndarray, x0: int, y0: int, x1: int, y1: int) -> np.ndarray:
+    """The hand map's levels (0, 1, 2) over the full-resolution window [y0:y1, x0:x1]."""
     s = HAND_SCALE
     sy0, sx0 = y0 // s, x0 // s
     sy1, sx1 = min(hands.shape[0], -(-y1 // s)), min(hands.shape[1], -(-x1 // s))
+    out = np.zeros((y1 - y0, x1 - x0), np.uint8)
     block = hands[sy0:sy1, sx0:sx1]
     if block.size == 0:
-        return np.zeros((y1 - y0, x1 - x0), np.uint8)
-    up = np.repeat(np.repeat(block, s, axis=0), s, axis=1)
+        return out
+    up = cv2.resize(block, (block.shape[1] * s, block.shape[0] * s),
+                    interpolation=cv2.INTER_NEAREST)
     oy, ox = y0 - sy0 * s, x0 - sx0 * s
-    out = np.zeros((y1 - y0, x1 - x0), np.uint8)
     part = up[oy:oy + (y1 - y0), ox:ox + (x1 - x0)]
-    out[:part.shape[0], :part.shape[1]] = (part >= level).view(np.uint8) * np.uint8(255)
+    out[:part.shape[0], :part.shape[1]] = part
     return out
 
 

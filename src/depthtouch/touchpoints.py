@@ -105,16 +105,17 @@ def find_touch_points(
             own = mine[nearest]
         # The hand: pixels above Tu next to the region that belong to an arm reaching in from
         # the image border (not an object standing on the surface, not a noisy pixel).
-        hand_roi = cv2.bitwise_and(high[y0:y1, x0:x1], hand_window(hands, x0, y0, x1, y1))
-        arm_roi = hand_window(hands, x0, y0, x1, y1, level=2)
+        levels = hand_window(hands, x0, y0, x1, y1)
+        hand_roi = cv2.bitwise_and(high[y0:y1, x0:x1], cv2.inRange(levels, 1, 255))
         attach_all = cv2.bitwise_and(cv2.dilate(whole, k_attach), hand_roi)
         n_all, hx0, hy0 = _centroid(attach_all)
         if n_all < min_attach:
             continue  # not attached to a hand: a flat object or noise
-        if _is_sliver(whole, np.array([hx0, hy0]), r0):
+        pts = cv2.findNonZero(whole).reshape(-1, 2)
+        proj = _project(pts, np.array([hx0, hy0]))
+        if proj is None or _is_sliver(proj, r0):
             continue  # a thin strip along the side of something raised: an edge, not a finger
-        parts = (_split_fingers(whole, np.array([hx0, hy0]), r0) if area > 6.0 * r0 * r0
-                 else [whole])
+        parts = (_split_fingers(whole, pts, proj, r0) if area > 6.0 * r0 * r0 else [whole])
         for reg in parts:
             if len(parts) == 1:
                 n_att, hx, hy = n_all, hx0, hy0
@@ -140,8 +141,10 @@ def find_touch_points(
             h_out.append(pt[2])
             a_out.append(int(area) if len(parts) == 1 else cv2.countNonZero(reg))
             hand_out.append((hx + x0, hy + y0))
+            att = attach_all if len(parts) == 1 else cv2.bitwise_and(
+                cv2.dilate(reg, k_attach), hand_roi)
             border_out.append(bool(cv2.countNonZero(cv2.bitwise_and(
-                cv2.bitwise_and(cv2.dilate(reg, k_attach), hand_roi), arm_roi))))
+                att, cv2.inRange(levels, 2, 2)))))
     if not xy_out:
         return TouchPoints.empty()
     return TouchPoints(
@@ -151,25 +154,31 @@ def find_touch_points(
     )
 
 
-def _is_sliver(reg: np.ndarray, hand: np.ndarray, r0: float) -> bool:
+def _project(pts: np.ndarray, hand: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+    """(s, lat): region pixels along the direction from the hand to the region's centre, and
+    across it; None when the hand sits at the centre."""
+    p = pts.astype(np.float64) - hand
+    d = p.mean(axis=0)
+    n = float(np.hypot(d[0], d[1]))
+    if n < 1e-6:
+        return None
+    d /= n
+    return p @ d, p[:, 1] * d[0] - p[:, 0] * d[1]
+
+
+def _is_sliver(proj: tuple[np.ndarray, np.ndarray], r0: float) -> bool:
     """A region that is short away from the hand (under a tip radius), or short away from it but
     long beside it: the band along the edge of an arm or an object (mixed depths at its
     silhouette), not a fingertip, which sticks out of the hand by at least its radius."""
-    ys, xs = np.nonzero(reg)
-    c = np.array([xs.mean(), ys.mean()])
-    d = c - hand
-    n = float(np.hypot(d[0], d[1]))
-    if n < 1e-6:
-        return False
-    d /= n
-    s = (xs - hand[0]) * d[0] + (ys - hand[1]) * d[1]
-    lat = (ys - hand[1]) * d[0] - (xs - hand[0]) * d[1]
+    s, lat = proj
     along = float(s.max() - s.min()) + 1.0
     across = float(lat.max() - lat.min()) + 1.0
     return along < r0 or (along < 1.5 * r0 and across > 3.0 * along)
 
 
-def _split_fingers(reg: np.ndarray, hand: np.ndarray, r0: float) -> list[np.ndarray]:
+def _split_fingers(
+    reg: np.ndarray, pts: np.ndarray, proj: tuple[np.ndarray, np.ndarray], r0: float
+) -> list[np.ndarray]:
     """Fingertips side by side merge into one region; split it between their tips.
 
     Seen along the finger direction (from the hand), the front of the region, per 1-px lateral
@@ -177,15 +186,8 @@ def _split_fingers(reg: np.ndarray, hand: np.ndarray, r0: float) -> list[np.ndar
     a dip of at least half a radius between them are separate fingers: the region is cut at the
     dips. A single fingertip has one bump and stays whole.
     """
-    ys, xs = np.nonzero(reg)
-    c = np.array([xs.mean(), ys.mean()])
-    d = c - hand
-    n = float(np.hypot(d[0], d[1]))
-    if n < 1e-6:
-        return [reg]
-    d /= n
-    s = (xs - hand[0]) * d[0] + (ys - hand[1]) * d[1]
-    lat = (ys - hand[1]) * d[0] - (xs - hand[0]) * d[1]
+    s, lat = proj
+    xs, ys = pts[:, 0], pts[:, 1]
     lb = (lat - lat.min()).astype(np.intp)
     front = np.full(int(lb.max()) + 1, -np.inf)
     np.maximum.at(front, lb, s)
@@ -251,7 +253,7 @@ def _extremity_point(
     n_lab, labels = cv2.connectedComponents(grown, connectivity=4)
     if n_lab > 2:
         keep = np.zeros(n_lab, np.uint8)
-        keep[np.unique(labels[reg > 0])] = 1
+        keep[labels[reg > 0]] = 1
         keep[0] = 0
         finger = keep[labels]
     else:
