@@ -190,8 +190,8 @@ def hand_map(high: np.ndarray, depth: np.ndarray, bounds: BandBounds) -> np.ndar
     wide that a whole arm is in it, a raised part of at least ``min_hand_mm2`` counts too (a tall
     object that large counts until the surface absorbs it, about a second after it was put
     down). Missing depth over a usable surface pixel counts as raised too: an arm close to the
-    camera is often nearer than the camera can measure. The mask is dilated before it is sampled so that a thin finger does
-    not fall apart at 1/4 resolution.
+    camera is often nearer than the camera can measure. The mask is dilated before it is sampled
+    so that a thin finger does not fall apart at 1/4 resolution.
     """
     h, w = high.shape
     if bounds.valid_u8 is None:

@@ -115,7 +115,7 @@ def find_touch_points(
         proj = _project(pts, np.array([hx0, hy0]))
         if proj is None or _is_sliver(proj, r0):
             continue  # a thin strip along the side of something raised: an edge, not a finger
-        parts = (_split_fingers(whole, pts, proj, r0) if area > 6.0 * r0 * r0 else [whole])
+        parts = (_split_fingers(whole, pts, proj, r0) if area > 10.0 * r0 * r0 else [whole])
         for reg in parts:
             if len(parts) == 1:
                 n_att, hx, hy = n_all, hx0, hy0
