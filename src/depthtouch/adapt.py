@@ -24,7 +24,7 @@ from .config import AdaptConfig
 from .regions import BandBounds, refresh_rows
 
 _SCALE = 4  # the whole-frame checks run on a 1/4 resolution view
-_BLOCK = 4  # the bump check compares a 1/4 view (2x2 means)
+_BLOCK = 8  # the bump check compares a 1/8 view (2x2 means, every 8th pixel)
 
 
 class SurfaceAdapter:
@@ -59,14 +59,14 @@ class SurfaceAdapter:
 
     @staticmethod
     def _sample(img: np.ndarray) -> np.ndarray:
-        """A 1/4 view: bilinear samples halfway between pixels, each the mean of 2x2 pixels
+        """A 1/8 view: bilinear samples halfway between pixels, each the mean of 2x2 pixels
         (OpenCV's area resampling costs twenty times more here, and this runs every frame)."""
         h, w = img.shape
         return cv2.resize(img, (max(1, w // _BLOCK), max(1, h // _BLOCK)),
                           interpolation=cv2.INTER_LINEAR)
 
     def _frame_blocks(self, depth: np.ndarray) -> np.ndarray:
-        """The 1/4 view of a frame in mm; NaN where a sample touched a missing pixel."""
+        """The 1/8 view of a frame in mm; NaN where a sample touched a missing pixel."""
         out = self._sample(depth).astype(np.float32) * np.float32(self.bounds.to_mm)
         seen = self._sample(cv2.inRange(depth, 1, 65535))
         out[(seen < 255) | ~self._block_valid] = np.nan
@@ -76,7 +76,7 @@ class SurfaceAdapter:
         """Every frame: "bump" when the camera moved and the scene has settled (learn the
         surface again), "disturbed" while touches are not to be trusted, else None.
 
-        Compares a 1/4 view of the frame (2x2 means: half the noise) with a reference that
+        Compares a 1/8 view of the frame (2x2 means: half the noise) with a reference that
         follows the frames with a 2 s time constant. A sudden shift of most
         blocks is a bump (or something large in front of the camera); a slow drift never is,
         as the reference follows it. Touches stay off until the surface is learned again, or
@@ -112,9 +112,12 @@ class SurfaceAdapter:
         if vs_surface < cfg.bump_fraction:
             self._bump_since = None  # it went away again
             return None
-        still = prev is not None and float(
-            np.mean(np.abs(ds - prev)[ok & np.isfinite(prev)] > thr[ok & np.isfinite(prev)])
-        ) < 0.05
+        # still: few samples jump by more than twice the threshold from one frame to the next
+        # (structured light flickers between quantisation steps; a person moves far more)
+        both = ok & np.isfinite(prev) if prev is not None else None
+        still = both is not None and float(
+            np.mean(np.abs(ds - prev)[both] > 2 * thr[both])
+        ) < 0.1
         if not still:
             self._bump_since = t
         elif t - self._bump_since >= cfg.bump_s:
@@ -128,7 +131,7 @@ class SurfaceAdapter:
         k = self._k
         self._k = (k + 1) % (len(self._stripes) - 1)
         if k == 0:
-            self._coarse = None  # the surface moved on: refresh its 1/4 view
+            self._coarse = None  # the surface moved on: refresh its 1/8 view
             self._exclusions(depth, touch_xy_px)
         y0, y1 = int(self._stripes[k]), int(self._stripes[k + 1])
         rows = slice(y0, y1)

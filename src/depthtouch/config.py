@@ -52,6 +52,8 @@ class SurfaceConfig:
     min_valid_fraction: a pixel is usable when at least this share of its learning samples is
         valid (non-zero) (default 0.5, range (0, 1]).
     noise_floor_mm: lower bound of a pixel's noise sigma in mm (default 0.5, range [0, 50]).
+    relearn_s: seconds of frames to learn the surface again after a camera bump, shorter than the
+        first learning so that touches come back soon (default 0.5, range (0, 60]).
     """
 
     learn_s: float = 1.5
@@ -59,9 +61,11 @@ class SurfaceConfig:
     statistic: str = "median"
     min_valid_fraction: float = 0.5
     noise_floor_mm: float = 0.5
+    relearn_s: float = 0.5
 
     def validate(self) -> None:
         _range("surface.learn_s", self.learn_s, 0.0, 60.0, lo_open=True)
+        _range("surface.relearn_s", self.relearn_s, 0.0, 60.0, lo_open=True)
         if self.learn_frames is not None:
             _range("surface.learn_frames", self.learn_frames, 2, 10000)
         if self.statistic not in ("mean", "mode", "median"):

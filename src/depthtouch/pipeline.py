@@ -10,6 +10,7 @@ warned about once, never raised.
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 import time
 from dataclasses import dataclass, field
@@ -116,7 +117,7 @@ class Pipeline:
         self.surface = None
         self._bounds = None
         self._adapter = None
-        self._learner.reset()
+        self._learner = SurfaceLearner(self.config.surface, self._surface_frames)
         self._tracker.reset()
         self._filter.reset()
 
@@ -201,7 +202,9 @@ class Pipeline:
         self.surface = None
         self._bounds = None
         self._adapter = None
-        self._learner.reset()
+        relearn = dataclasses.replace(self.config.surface, learn_s=self.config.surface.relearn_s,
+                                      learn_frames=None)
+        self._learner = SurfaceLearner(relearn)
         self.stats.relearns += 1
         self.stats.events += len(events)
         self._last_frame = frame

@@ -190,15 +190,20 @@ def hand_map(high: np.ndarray, depth: np.ndarray, bounds: BandBounds) -> np.ndar
     wide that a whole arm is in it, a raised part of at least ``min_hand_mm2`` counts too (a tall
     object that large counts until the surface absorbs it, about a second after it was put
     down). Missing depth over a usable surface pixel counts as raised too: an arm close to the
-    camera is often nearer than the camera can measure. The mask is dilated before it is sampled
-    so that a thin finger does not fall apart at 1/4 resolution.
+    camera is often nearer than the camera can measure. Sampled bilinearly and dilated, so that a
+    thin finger does not fall apart at 1/4 resolution.
     """
     h, w = high.shape
     if bounds.valid_u8 is None:
         raise ValueError("hand_map: bounds without valid_u8")
-    raised = cv2.bitwise_or(high, cv2.bitwise_and(cv2.inRange(depth, 0, 0), bounds.valid_u8))
-    small = cv2.resize(cv2.dilate(raised, _kernel(3)), (max(1, w // HAND_SCALE), max(1, h // HAND_SCALE)),
-                       interpolation=cv2.INTER_NEAREST)
+    size = (max(1, w // HAND_SCALE), max(1, h // HAND_SCALE))
+    # bilinear samples between pixels: a sample is non-zero when any of its 2x2 pixels is high
+    small_high = cv2.resize(high, size, interpolation=cv2.INTER_LINEAR)
+    small_valid = cv2.resize(bounds.valid_u8, size, interpolation=cv2.INTER_NEAREST)
+    small_zero = cv2.bitwise_and(
+        cv2.inRange(cv2.resize(depth, size, interpolation=cv2.INTER_NEAREST), 0, 0), small_valid)
+    small = cv2.dilate(cv2.bitwise_or(cv2.inRange(small_high, 1, 255), small_zero),
+                       _kernel(3))
     n, labels, stats, _ = cv2.connectedComponentsWithStats(small, connectivity=8, ltype=cv2.CV_16U)
     sh, sw = small.shape
     x, y, bw, bh = stats[:, 0], stats[:, 1], stats[:, 2], stats[:, 3]
