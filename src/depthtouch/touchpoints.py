@@ -157,13 +157,15 @@ def find_touch_points(
 def _project(pts: np.ndarray, hand: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
     """(s, lat): region pixels along the direction from the hand to the region's centre, and
     across it; None when the hand sits at the centre."""
-    p = pts.astype(np.float64) - hand
-    d = p.mean(axis=0)
-    n = float(np.hypot(d[0], d[1]))
+    px = pts[:, 0] - hand[0]
+    py = pts[:, 1] - hand[1]
+    n_px = px.shape[0]
+    dx, dy = float(px.sum()) / n_px, float(py.sum()) / n_px
+    n = (dx * dx + dy * dy) ** 0.5
     if n < 1e-6:
         return None
-    d /= n
-    return p @ d, p[:, 1] * d[0] - p[:, 0] * d[1]
+    dx, dy = dx / n, dy / n
+    return px * dx + py * dy, py * dx - px * dy
 
 
 def _is_sliver(proj: tuple[np.ndarray, np.ndarray], r0: float) -> bool:
@@ -277,9 +279,10 @@ def _extremity_point(
     s_front = s0 + float(wide[-1] if wide.size else counts.size - 1) + 1.0
     # finger width in a slab behind the tip cap -> radius (hands differ)
     n_slab = np.count_nonzero((s > s_front - 3.0 * r0) & (s <= s_front - r0))
-    r = float(np.clip(n_slab / (4.0 * r0), 0.6 * r0, 1.5 * r0))
+    r = min(max(n_slab / (4.0 * r0), 0.6 * r0), 1.5 * r0)
     cap = s > s_front - 2.0 * r
-    l_c = float(lat[cap].mean())
+    l_cap = lat[cap]
+    l_c = float(l_cap.sum()) / max(1, l_cap.shape[0])
     # The contact is under the centre of the rounded tip. Its position along the finger comes
     # from an area, not an edge: pixels of the tip ahead of the centre fill half a disc of radius
     # r, so the centre is where the count from the front reaches pi r^2 / 2 (sub-pixel, and a
