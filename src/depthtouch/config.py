@@ -169,13 +169,14 @@ class TrackingConfig:
     gate_mm: largest jump between frames that keeps an id, when K is known (default 40).
     gate_px: the same when K is unknown (default 25).
     down_frames: consecutive frames a new contact needs before ``down`` (default 2, >= 1).
-    up_frames: frames a contact may be missing before ``up`` (grace, default 2, >= 1).
+    up_frames: frames a contact may be missing before ``up`` (grace, default 3, >= 1): bridges
+        the frame or two in which fingertips side by side merge into one region.
     """
 
     gate_mm: float = 40.0
     gate_px: float = 25.0
     down_frames: int = 2
-    up_frames: int = 2
+    up_frames: int = 3
 
     def validate(self) -> None:
         _range("tracking.gate_mm", self.gate_mm, 0.0, 1000.0, lo_open=True)
