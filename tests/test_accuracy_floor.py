@@ -7,6 +7,7 @@ default suite against the issue's acceptance levels.
 
 from __future__ import annotations
 
+import functools
 from pathlib import Path
 from typing import Any
 
@@ -144,6 +145,7 @@ def _failures(m: Metrics, floor: dict[str, float]) -> list[str]:
             if not (v >= lim if op == ">=" else v <= lim)]
 
 
+@functools.lru_cache(maxsize=2)  # the two slow tests share one run of the full suite
 def _run(subset: str | None) -> Metrics:
     s = load_suite("default")
     cases = s.select(subset)

@@ -16,6 +16,9 @@ from .config import RegionConfig
 from .surface import SurfaceModel, height_factor
 
 
+HAND_SCALE = 4  # the hand map is kept at 1/4 resolution
+
+
 @dataclass(frozen=True)
 class BandBounds:
     """Per-pixel depth bounds (camera units, uint16 (H, W)) derived from a surface.
@@ -44,6 +47,7 @@ class BandBounds:
     hand_max_mm: float
     valid_u8: np.ndarray | None = None
     min_hand_mm2: float = 6000.0
+    small_valid: np.ndarray | None = None  # valid_u8 at the hand map's 1/4 resolution
 
 
 def _depth_bounds(
@@ -92,6 +96,10 @@ def band_bounds(surface: SurfaceModel, config: RegionConfig, tip_radius_mm: floa
         valid=surface.valid, to_mm=to_mm, mm_per_px=mm_px, min_area_px=min_area,
         open_px=open_px, tu_mm=cfg.tu_mm, hand_max_mm=cfg.hand_max_mm,
         valid_u8=surface.valid.astype(np.uint8) * np.uint8(255), min_hand_mm2=cfg.min_hand_mm2,
+        small_valid=cv2.resize(surface.valid.astype(np.uint8) * np.uint8(255),
+                               (max(1, surface.valid.shape[1] // HAND_SCALE),
+                                max(1, surface.valid.shape[0] // HAND_SCALE)),
+                               interpolation=cv2.INTER_NEAREST),
     )
 
 
@@ -178,9 +186,6 @@ def find_regions(band: np.ndarray, bounds: BandBounds) -> Regions:
     return Regions(np.asarray(boxes, np.int64), np.asarray(areas, np.int64), tuple(masks), mask)
 
 
-HAND_SCALE = 4  # the hand map is kept at 1/4 resolution
-
-
 def hand_map(high: np.ndarray, depth: np.ndarray, bounds: BandBounds) -> np.ndarray:
     """Where hands are: parts above Tu connected to the image border, at 1/4 resolution (uint8:
     2 = connected to the border, 1 = large enough to be a hand, 0 = no hand).
@@ -199,7 +204,9 @@ def hand_map(high: np.ndarray, depth: np.ndarray, bounds: BandBounds) -> np.ndar
     size = (max(1, w // HAND_SCALE), max(1, h // HAND_SCALE))
     # bilinear samples between pixels: a sample is non-zero when any of its 2x2 pixels is high
     small_high = cv2.resize(high, size, interpolation=cv2.INTER_LINEAR)
-    small_valid = cv2.resize(bounds.valid_u8, size, interpolation=cv2.INTER_NEAREST)
+    small_valid = bounds.small_valid
+    if small_valid is None or small_valid.shape != (size[1], size[0]):
+        small_valid = cv2.resize(bounds.valid_u8, size, interpolation=cv2.INTER_NEAREST)
     small_zero = cv2.bitwise_and(
         cv2.inRange(cv2.resize(depth, size, interpolation=cv2.INTER_NEAREST), 0, 0), small_valid)
     small = cv2.dilate(cv2.bitwise_or(cv2.inRange(small_high, 1, 255), small_zero),

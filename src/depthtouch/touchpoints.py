@@ -133,8 +133,10 @@ def find_touch_points(
                 if len(parts) > 1:
                     other_parts = cv2.bitwise_and(whole, cv2.bitwise_not(reg))
                     part_own = _nearest_mask(reg, other_parts, own)
+                center = ((float(pts[:, 0].mean()), float(pts[:, 1].mean()))
+                          if len(parts) == 1 else None)
                 pt = _extremity_point(reg, hs, hand, r0, bounds.tl_mm[y0:y1, x0:x1], k_reach,
-                                      part_own)
+                                      part_own, center)
             if pt is None:
                 continue
             xy_out.append((pt[0] + x0, pt[1] + y0))
@@ -241,6 +243,7 @@ def _extremity_point(
     tl_mm: np.ndarray,
     k_reach: np.ndarray,
     own: np.ndarray | None = None,
+    center: tuple[float, float] | None = None,
 ) -> tuple[float, float, float] | None:
     # The finger's shape near the tip: the region grown into raised pixels nearby on the
     # smoothed map (noise averaged over 9 px): the tip cap that Tl cut away, and the finger body
@@ -260,7 +263,10 @@ def _extremity_point(
         finger = keep[labels]
     else:
         finger = grown
-    _, cx, cy = _centroid(reg)
+    if center is None:
+        _, cx, cy = _centroid(reg)
+    else:
+        cx, cy = center
     dx, dy = cx - hand[0], cy - hand[1]
     norm = float(np.hypot(dx, dy))
     if norm < 1e-6:
