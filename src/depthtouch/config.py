@@ -171,18 +171,27 @@ class TrackingConfig:
     down_frames: consecutive frames a new contact needs before ``down`` (default 2, >= 1).
     up_frames: frames a contact may be missing before ``up`` (grace, default 3, >= 1): bridges
         the frame or two in which fingertips side by side merge into one region.
+    merge_mm: a missing contact within this distance of a contact seen this frame is taken as
+        merged into its neighbour's region (fingertips side by side), not lifted (default 25 mm;
+        half of it in px when K is unknown).
+    merge_frames: how many frames such a merged contact is held before it may go up (default
+        10, range [0, 300]).
     """
 
     gate_mm: float = 40.0
     gate_px: float = 25.0
     down_frames: int = 2
     up_frames: int = 3
+    merge_mm: float = 25.0
+    merge_frames: int = 10
 
     def validate(self) -> None:
         _range("tracking.gate_mm", self.gate_mm, 0.0, 1000.0, lo_open=True)
         _range("tracking.gate_px", self.gate_px, 0.0, 1000.0, lo_open=True)
         _range("tracking.down_frames", self.down_frames, 1, 30)
         _range("tracking.up_frames", self.up_frames, 1, 30)
+        _range("tracking.merge_mm", self.merge_mm, 0.0, 200.0)
+        _range("tracking.merge_frames", self.merge_frames, 0, 300)
 
 
 @dataclass(frozen=True)

@@ -37,6 +37,7 @@ class Track:
     vel: np.ndarray = field(default_factory=lambda: np.zeros(2))
     out_xy: np.ndarray | None = None  # last reported (filtered) position
     hand_at_border: bool = True
+    merged: int = 0  # consecutive frames hidden in a neighbour's region
 
     def predicted(self) -> np.ndarray:
         """Where the contact should be this frame (constant velocity per frame)."""
@@ -116,6 +117,7 @@ class Tracker:
                 t.hand_at_border = border[j]
                 t.seen += 1
                 t.missing = 0
+                t.merged = 0
                 if t.active:
                     out.append(TrackUpdate(t, "move", True))
                 elif t.seen >= self.config.down_frames:
@@ -123,6 +125,13 @@ class Tracker:
                     out.append(TrackUpdate(t, "down", True))
                 keep.append(t)
             elif t.active:
+                if self._merged(t, pos, used) and t.merged < self.config.merge_frames:
+                    # a fingertip side by side with a touching neighbour merged into its region:
+                    # it is hidden, not lifted; hold it where it was
+                    t.merged += 1
+                    out.append(TrackUpdate(t, "move", False))
+                    keep.append(t)
+                    continue
                 t.missing += 1
                 if t.missing >= self.config.up_frames:
                     out.append(TrackUpdate(t, "up", False))
@@ -141,6 +150,15 @@ class Tracker:
             keep.append(t)
         self.tracks = keep
         return out
+
+    def _merged(self, t: Track, pos: np.ndarray, used: set[int]) -> bool:
+        """Is a point matched this frame within a finger width of this (unmatched) track?"""
+        if not used:
+            return False
+        scale = self.scale_mm_per_px if self.scale_mm_per_px is not None else None
+        near = self.config.merge_mm if scale is not None else self.config.merge_mm / 2.0
+        d = np.linalg.norm(pos[list(used)] - t.pos, axis=1)
+        return bool((d <= near).any())
 
     def _activate(self, t: Track) -> None:
         t.active = True
