@@ -15,7 +15,6 @@ import numpy as np
 from .config import RegionConfig
 from .surface import SurfaceModel, height_factor
 
-
 HAND_SCALE = 4  # the hand map is kept at 1/4 resolution
 
 
