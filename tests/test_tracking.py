@@ -91,3 +91,24 @@ def test_end_all_and_reset():
     assert sorted(u.track.id for u in ended) == [1, 2] and all(u.state == "up" for u in ended)
     tr.reset()
     assert tr.update(pts((1, 1, 5)))[0].track.id == 3
+
+
+def test_fingertips_merging_keep_their_ids():
+    # two tips 20 mm apart merge into one point for 4 frames, then separate again
+    tr = Tracker(TrackingConfig(down_frames=1, up_frames=2, merge_mm=25, merge_frames=10),
+                 scale_mm_per_px=1.0)
+    run(tr, [pts((100, 100, 5), (120, 100, 5))])
+    merged = run(tr, [pts((110, 100, 5))] * 4)
+    assert all(sorted(f) == [(1, "move"), (2, "move")] for f in merged)
+    apart = run(tr, [pts((100, 100, 5), (120, 100, 5))])
+    assert sorted(apart[0]) == [(1, "move"), (2, "move")]
+
+
+def test_a_merged_tip_that_never_comes_back_goes_up():
+    tr = Tracker(TrackingConfig(down_frames=1, up_frames=2, merge_mm=25, merge_frames=3),
+                 scale_mm_per_px=1.0)
+    run(tr, [pts((100, 100, 5), (120, 100, 5))])
+    out = run(tr, [pts((110, 100, 5))] * 6)
+    states = [dict((i, s) for i, s in f) for f in out]
+    ups = [k for k, f in enumerate(states) if len(f) > 1 and "up" in f.values()]
+    assert len(ups) == 1 and ups[0] >= 3  # held for merge_frames, then the usual grace

@@ -224,7 +224,8 @@ class AdaptConfig:
 
     enabled: update the surface while running (default true).
     absorb_s: a change of the surface that stays still this long becomes surface (an object put
-        down, or taken away) (default 1.0 s, range [0.1, 60]).
+        down, or taken away) (default 0.5 s, range [0.1, 60]); checked once per stripe cycle
+        (every 0.8 s at 30 fps), so a change is surface 1.2-1.6 s after it stopped moving.
     still_mm: a pixel is still when it moves less than max(still_mm, 3 sigma) between two visits
         (default 3.0 mm).
     drift_tau_s: time constant of the slow update of unchanged pixels (temperature drift)
@@ -239,7 +240,7 @@ class AdaptConfig:
     """
 
     enabled: bool = True
-    absorb_s: float = 1.0
+    absorb_s: float = 0.5
     still_mm: float = 3.0
     drift_tau_s: float = 10.0
     stripes: int = 24
