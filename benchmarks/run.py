@@ -133,12 +133,42 @@ def main(argv: list[str] | None = None) -> int:
         cells = [f"{r[s][0]:.3f} / {r[s][1]:.3f}" for s in STAGES]
         cells[-1] = f"**{cells[-1]}**"
         lines.append(f"| {w}x{h} | {n} | {r['found'][0]:.0f} | " + " | ".join(cells) + " |")
-    extra = _latency_sections()
-    lines += [""] + extra
+    lines += [""] + _analysis(rows) + _latency_sections()
     Path(a.out).parent.mkdir(parents=True, exist_ok=True)
     Path(a.out).write_text("\n".join(lines) + "\n", encoding="utf-8")
     print(f"wrote {a.out}")
     return 0
+
+
+def _analysis(rows: list) -> list[str]:
+    """What the table says against the 1 ms target, with the numbers of this run."""
+    at = {(w, h, n): r for w, h, n, r in rows}
+    out = ["## Against the target", ""]
+    if (640, 480, 0) in at and (640, 480, 5) in at:
+        t0, t5 = at[(640, 480, 0)]["total"][0], at[(640, 480, 5)]["total"][0]
+        t2 = at.get((640, 480, 2), {"total": (float("nan"), 0)})["total"][0]
+        ok = "met" if max(t0, t2, t5) <= 1.0 else "not met"
+        out += [
+            f"Issue 2 asks for at most 1.0 ms median at 640x480 with 0-5 touches: {ok} "
+            f"({t0:.2f} ms with none, {t2:.2f} ms with 2, {t5:.2f} ms with 5; about "
+            f"{(t5 - t0) / 5:.2f} ms per touch).",
+            "",
+        ]
+    out += [
+        "- Without touches the cost is the 3x3 median, one stripe of the surface adaptation, the "
+        "bump check and the two `inRange` calls.",
+        "- Per touch the time is in `touchpoints.py`: some 40 small OpenCV/numpy calls on a window "
+        "of ~40x45 pixels (smoothed heights, growth into the tip cap, connected pixels, the hand "
+        "window, the projections), each a few microseconds: Python call overhead dominates, not "
+        "pixels. Ways on: one compiled kernel per region (numba works with numpy 2.4 here), or "
+        "the per-region steps done for all regions of a frame in one batch.",
+        "- All of it stays far under a camera's frame interval (33 ms at 30 fps, 11 ms at 90 fps) "
+        "and the paper's 20 ms, up to 10 touches at 1280x720.",
+        "- The machine is a shared 2-core VM: medians move by up to ±30 % between runs, and the p95 "
+        "column carries the neighbours' noise.",
+        "",
+    ]
+    return out
 
 
 def _tuio_latency(n: int = 300) -> dict[str, float]:
