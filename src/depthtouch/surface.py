@@ -11,8 +11,6 @@ thresholds mean millimetres above the surface also on tilted and curved surfaces
 from __future__ import annotations
 
 import json
-import os
-import tempfile
 import zipfile
 import zlib
 from dataclasses import dataclass
@@ -23,6 +21,7 @@ from numpy.lib.npyio import NpzFile
 
 from .config import SurfaceConfig
 from .errors import SurfaceError
+from .sources.npz import save_npz_atomic
 from .types import Frame
 
 SURFACE_FORMAT = "depthtouch-surface/1"
@@ -88,21 +87,7 @@ class SurfaceModel:
                   "meta": np.asarray(json.dumps(meta))}
         if self.K is not None:
             arrays["K"] = self.K
-        try:
-            fd, tmp = tempfile.mkstemp(suffix=".npz", dir=parent)
-        except OSError as e:
-            raise SurfaceError(f"{p}: cannot write here ({e.strerror}); choose another path") from e
-        try:
-            with os.fdopen(fd, "wb") as fh:
-                np.savez_compressed(fh, **arrays)  # type: ignore[arg-type]
-            os.replace(tmp, p)
-        except OSError as e:
-            Path(tmp).unlink(missing_ok=True)
-            raise SurfaceError(f"{p}: cannot write ({e.strerror}); choose another path") from e
-        except BaseException:
-            Path(tmp).unlink(missing_ok=True)
-            raise
-        return p
+        return save_npz_atomic(p, arrays, SurfaceError)
 
 
 def load_surface(path: str | Path) -> SurfaceModel:

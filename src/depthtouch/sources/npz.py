@@ -13,7 +13,7 @@ from typing import IO, Any
 import numpy as np
 from numpy.lib.npyio import NpzFile
 
-from ..errors import SourceError
+from ..errors import DepthTouchError, SourceError
 from ..types import Frame
 from .base import (
     SourceBase,
@@ -146,18 +146,27 @@ def write_npz(
         raise SourceError(f"{p}: is a folder; give a file name ending in .npz")
     if not parent.is_dir():
         raise SourceError(f"{p}: folder {parent} does not exist; create it first")
+    return save_npz_atomic(p, arrays, SourceError)
+
+
+def save_npz_atomic(
+    path: Path, arrays: dict[str, np.ndarray], error: type[DepthTouchError]
+) -> Path:
+    """Write a compressed ``.npz`` to a temporary file beside ``path`` and rename it into place,
+    so that a failed write never leaves a half-written file; OS errors become ``error``."""
+    parent = path.parent if str(path.parent) else Path(".")
     try:
-        fd, tmp = tempfile.mkstemp(prefix=f".{p.name}.", suffix=".part", dir=parent)
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".part", dir=parent)
     except OSError as e:
-        raise SourceError(f"{p}: cannot write here ({e.strerror}); choose another path") from e
+        raise error(f"{path}: cannot write here ({e.strerror}); choose another path") from e
     try:
         with os.fdopen(fd, "wb") as fh:
             np.savez_compressed(fh, **arrays)  # type: ignore[arg-type]
-        os.replace(tmp, p)
+        os.replace(tmp, path)
     except OSError as e:
         Path(tmp).unlink(missing_ok=True)
-        raise SourceError(f"{p}: cannot write ({e.strerror}); choose another path") from e
+        raise error(f"{path}: cannot write ({e.strerror}); choose another path") from e
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise
-    return p
+    return path
