@@ -52,7 +52,7 @@ def test_ids_follow_crossing_paths_and_are_never_reused():
 def test_fast_drag_keeps_its_id_with_prediction():
     # 35 px per frame at 1 mm/px: beyond a 30 mm gate without the velocity prediction
     tr = Tracker(TrackingConfig(down_frames=1, up_frames=1, gate_mm=30), scale_mm_per_px=1.0)
-    ids = set()
+    ids: set[int] = set()
     for i in range(10):
         x = 100 + 20 * i if i < 2 else 120 + 35 * (i - 1)
         ids.update(u.track.id for u in tr.update(pts((x, 50, 5))))
@@ -112,3 +112,99 @@ def test_a_merged_tip_that_never_comes_back_goes_up():
     states = [dict((i, s) for i, s in f) for f in out]
     ups = [k for k, f in enumerate(states) if len(f) > 1 and "up" in f.values()]
     assert len(ups) == 1 and ups[0] >= 3  # held for merge_frames, then the usual grace
+
+
+def pts_area(*xyha: tuple[float, float, float, float]) -> TouchPoints:
+    """Touch points from (x, y, height_mm, area_px) rows."""
+    a = np.array(xyha, np.float64)
+    return TouchPoints(a[:, :2], a[:, 2], a[:, 3].astype(np.int64), np.full((len(a), 2), np.nan))
+
+
+def _ids_of_last_frame(tracker: Tracker, frames: list[TouchPoints]) -> list[int | None]:
+    """The id reported at each touch point of the last frame (None: no contact took it)."""
+    for f in frames[:-1]:
+        tracker.update(f)
+    last = frames[-1]
+    ups = [u for u in tracker.update(last) if u.measured and u.state != "up"]
+    out: list[int | None] = []
+    for xy in last.xy_px:
+        ids = [u.track.id for u in ups if np.allclose(u.track.xy_px, xy)]
+        out.append(ids[0] if ids else None)
+    return out
+
+
+_STILL_PAIR = [pts_area((100, 100, 5, 50), (120, 100, 5, 50))] * 2  # two tips side by side, down
+
+# Each row: frames of touch points (x, y, height, area) and the ids expected at the points of
+# the last frame. The rows replay, in miniature, the id switches measured on the simulator
+# suite (docs/accuracy.md): all but the last row failed before contacts down were matched first,
+# merged regions held their pair, and velocities started from rest.
+ID_CASES = {
+    # drags d435 concave: a noise blip next to a finger that turns takes the finger's point; the
+    # finger's contact was held as "merged" and the blip's pending track went down with a new id
+    "blip beside a turning finger": (
+        [pts_area((100, 100, 5, 50)), pts_area((105, 100, 5, 50)), pts_area((110, 100, 5, 50)),
+         pts_area((115, 100, 5, 50), (117, 104, 5, 9)), pts_area((116, 105, 5, 50)),
+         pts_area((117, 110, 5, 50))],
+        [1],
+    ),
+    # pinch d435: a pending blip and a high thumb point: the joint assignment paired both and
+    # pushed the contact onto the thumb (10 mm) instead of its own point (7 mm)
+    "arriving point pushes a contact onto a farther one": (
+        [pts_area((100, 100, 5, 50)), pts_area((100, 100, 5, 50)),
+         pts_area((100, 100, 5, 50), (90, 102, 5, 20)),
+         pts_area((92, 106, 16, 20), (102, 93, 5, 50)),
+         pts_area((92, 106, 16, 20), (101, 95, 5, 50))],
+        [None, 1],
+    ),
+    # multitouch d435: two tips merge into one region (twice the area) as a third touches down
+    # beside them; one contact jumped onto the newcomer and the pair came back swapped
+    "merged pair and a newcomer": (
+        [*_STILL_PAIR, pts_area((111, 100, 5, 110), (135, 105, 5, 50)),
+         pts_area((100, 100, 5, 50), (120, 100, 5, 50), (135, 105, 5, 50))],
+        [1, 2, 3],
+    ),
+    # a pair dragged while merged: the hidden contact stayed where it was and took the other's
+    # place when the region split again
+    "merged pair dragged together": (
+        [*_STILL_PAIR, *[pts_area((110 + 8 * k, 100, 5, 100)) for k in range(1, 6)],
+         pts_area((140, 100, 5, 50), (160, 100, 5, 50))],
+        [1, 2],
+    ),
+    # multitouch kinect-v2: the first step after touch-down (biased by a tip arriving beside it)
+    # was taken as the velocity, and the prediction led the contact onto the newcomer
+    "first step is not a velocity": (
+        [pts_area((100, 100, 5, 50)), pts_area((103, 101, 5, 50)),
+         pts_area((101, 100, 5, 50), (108, 102, 5, 50)),
+         pts_area((101, 100, 5, 50), (108, 102, 5, 50))],
+        [1, 2],
+    ),
+    # guard: two fingers side by side starting to move together (a two-finger scroll) are not a
+    # merge, although the right one is nearer to the left one's new point (8 mm) than to its own
+    # (12 mm): no region grew to hold two tips
+    "two-finger scroll from rest": (
+        [*_STILL_PAIR, pts_area((112, 100, 5, 50), (132, 100, 5, 50)),
+         pts_area((124, 100, 5, 50), (144, 100, 5, 50))],
+        [1, 2],
+    ),
+}
+
+
+@pytest.mark.parametrize("frames, expected", list(ID_CASES.values()), ids=list(ID_CASES))
+def test_ids_stay_with_their_fingers(frames, expected):
+    tr = Tracker(TrackingConfig(), scale_mm_per_px=1.0)
+    assert _ids_of_last_frame(tr, frames) == expected
+
+
+def test_merge_area_ratio_zero_turns_merged_pairs_off():
+    frames, _ = ID_CASES["merged pair dragged together"]
+    tr = Tracker(TrackingConfig(merge_area_ratio=0.0), scale_mm_per_px=1.0)
+    assert _ids_of_last_frame(tr, frames) != [1, 2]  # the hidden contact stayed behind
+
+
+def test_a_large_region_alone_is_not_a_merge():
+    # one finger pressed flat (area doubles) next to a contact that lifted: the lifted one goes up
+    tr = Tracker(TrackingConfig(up_frames=1, merge_frames=0), scale_mm_per_px=1.0)
+    run(tr, _STILL_PAIR)
+    out = run(tr, [pts_area((100, 100, 5, 120))])
+    assert sorted(out[0]) == [(1, "move"), (2, "up")]

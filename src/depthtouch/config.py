@@ -176,6 +176,10 @@ class TrackingConfig:
         half of it in px when K is unknown).
     merge_frames: how many frames such a merged contact is held before it may go up (default
         10, range [0, 300]).
+    merge_area_ratio: a touch point whose region is at least this many times as large as the
+        fingertips of two contacts near it holds both (their regions merged): both keep their
+        ids and move with it, each at its place in the pair (default 1.5: one tip is 1, two
+        side by side about 2; range [0, 10], 0 turns it off).
     """
 
     gate_mm: float = 40.0
@@ -184,6 +188,7 @@ class TrackingConfig:
     up_frames: int = 3
     merge_mm: float = 25.0
     merge_frames: int = 10
+    merge_area_ratio: float = 1.5
 
     def validate(self) -> None:
         _range("tracking.gate_mm", self.gate_mm, 0.0, 1000.0, lo_open=True)
@@ -192,6 +197,7 @@ class TrackingConfig:
         _range("tracking.up_frames", self.up_frames, 1, 30)
         _range("tracking.merge_mm", self.merge_mm, 0.0, 200.0)
         _range("tracking.merge_frames", self.merge_frames, 0, 300)
+        _range("tracking.merge_area_ratio", self.merge_area_ratio, 0.0, 10.0)
 
 
 @dataclass(frozen=True)

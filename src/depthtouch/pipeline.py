@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import dataclasses
 import logging
+import math
 import time
 from dataclasses import dataclass, field
 from typing import Any, Protocol
@@ -235,7 +236,7 @@ class Pipeline:
             ids = np.array([u.track.id for u in measured], np.int64)
             xy = np.array([u.track.xy_px for u in measured], np.float64) * scale
             out = self._filter.update(ids, xy, frame.timestamp_s) / scale
-            filtered = {int(i): out[k] for k, i in enumerate(ids)}
+            filtered = dict(zip(ids.tolist(), out))
         ended = np.array([u.track.id for u in updates if u.state == "up"], np.int64)
         if ended.size:
             self._filter.drop(ended)
@@ -247,8 +248,8 @@ class Pipeline:
             xy = got if got is not None else (t.out_xy if t.out_xy is not None else t.xy_px)
             t.out_xy = xy
             extra: dict[str, Any] = {"area": t.area_px}
-            if np.isfinite(t.height_mm):
-                extra["h"] = round(float(t.height_mm), 2)
+            if math.isfinite(t.height_mm):
+                extra["h"] = round(t.height_mm, 2)
             events.append(TouchEvent(frame.index, frame.timestamp_s, t.id, u.state,
                                      float(xy[0]), float(xy[1]), extra))
         self._add_coordinates(events)
@@ -258,22 +259,24 @@ class Pipeline:
         surf = self.surface
         if not events or surf is None:
             return
-        xy = np.array([[e.x, e.y] for e in events], np.float64)
         if surf.K is not None:
+            # a handful of touches: plain floats cost less than array calls here
             K = surf.K
-            h, w = surf.depth_mm.shape
-            ix = np.clip(np.rint(xy[:, 0]).astype(int), 0, w - 1)
-            iy = np.clip(np.rint(xy[:, 1]).astype(int), 0, h - 1)
-            z = surf.depth_mm[iy, ix].astype(np.float64)
-            X = (xy[:, 0] - K[0, 2]) * z / K[0, 0]
-            Y = (xy[:, 1] - K[1, 2]) * z / K[1, 1]
-            for e, a, b, c in zip(events, X, Y, z):
-                if c > 0:
-                    e.extra.update(X=round(float(a), 2), Y=round(float(b), 2), Z=round(float(c), 2))
+            fx, fy, cx, cy = float(K[0, 0]), float(K[1, 1]), float(K[0, 2]), float(K[1, 2])
+            dm = surf.depth_mm
+            h, w = dm.shape
+            for e in events:
+                ix = min(max(int(round(e.x)), 0), w - 1)
+                iy = min(max(int(round(e.y)), 0), h - 1)
+                z = float(dm[iy, ix])
+                if z > 0:
+                    e.extra.update(X=round((e.x - cx) * z / fx, 2), Y=round((e.y - cy) * z / fy, 2),
+                                   Z=round(z, 2))
         if self.calibration is not None:
+            xy = np.array([[e.x, e.y] for e in events], np.float64)
             sxy = self.calibration.to_screen(xy)
-            for e, (sx, sy) in zip(events, sxy):
-                e.extra.update(sx=round(float(sx), 2), sy=round(float(sy), 2))
+            for e, (sx, sy) in zip(events, sxy.tolist()):
+                e.extra.update(sx=round(sx, 2), sy=round(sy, 2))
 
     def _frame_ok(self, frame: Frame, surface: SurfaceModel | None) -> bool:
         d = frame.depth

@@ -7,6 +7,7 @@ opening and one labelling, and nothing at all when the band is empty.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import cv2
@@ -126,7 +127,8 @@ class Regions:
 
     bbox_xywh: (R, 4) int bounding boxes in the image; area_px: (R,) pixel counts;
     masks: per region a uint8 mask (1 = in) of its bounding box;
-    band: the opened band mask of the whole frame (uint8, 255 = in), or None when empty.
+    band: the eroded band mask of the whole frame (uint8, 255 = in; dilated by ``open_px`` it
+    is the opened band), or None when not known.
     """
 
     bbox_xywh: np.ndarray
@@ -157,32 +159,63 @@ def find_regions(band: np.ndarray, bounds: BandBounds) -> Regions:
 
     Regions are the outer contours of the opened mask (``cv2.findContours`` costs a tenth of a
     full labelling); each region's mask is its filled contour within its bounding box, so a hole
-    inside a region counts as region.
+    inside a region counts as region. The opening is done region by region where it can: the
+    band is eroded once, and each remaining part is dilated back within its own box; only when
+    two parts come so close that their dilations could join is the whole frame dilated.
     """
-    mask = band
-    if bounds.open_px > 1:
-        mask = cv2.morphologyEx(band, cv2.MORPH_OPEN, _kernel(bounds.open_px))
-    if cv2.countNonZero(mask) < bounds.min_area_px:
+    k = bounds.open_px
+    core = cv2.erode(band, _kernel(k)) if k > 1 else band
+    if not cv2.hasNonZero(core):
         return Regions.empty()
-    contours, _ = cv2.findContours(mask, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
+    contours, _ = cv2.findContours(core, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
+    pad = k // 2
+    regions = _contour_regions(contours, band.shape, bounds.min_area_px, pad, k)
+    if pad and len(regions) > 1 and _any_close(regions.bbox_xywh):
+        opened = cv2.dilate(core, _kernel(k))
+        contours, _ = cv2.findContours(opened, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
+        regions = _contour_regions(contours, band.shape, bounds.min_area_px, 0, 1)
+    if len(regions) == 0:
+        return regions
+    return Regions(regions.bbox_xywh, regions.area_px, regions.masks, core)
+
+
+def _any_close(boxes: np.ndarray) -> bool:
+    """Do any two boxes (x, y, w, h) touch or overlap (8-connected)?"""
+    x0, y0 = boxes[:, 0], boxes[:, 1]
+    x1, y1 = x0 + boxes[:, 2], y0 + boxes[:, 3]
+    ox = (x0[:, None] <= x1[None, :]) & (x0[None, :] <= x1[:, None])
+    oy = (y0[:, None] <= y1[None, :]) & (y0[None, :] <= y1[:, None])
+    close = ox & oy
+    np.fill_diagonal(close, False)
+    return bool(close.any())
+
+
+def _contour_regions(contours: Sequence[np.ndarray], shape: tuple[int, ...], min_area: int,
+                     pad: int, k: int) -> Regions:
+    """Regions of filled outer contours, each dilated by ``pad`` px (kernel k) when pad > 0."""
+    H, W = shape[:2]
     boxes: list[tuple[int, int, int, int]] = []
     areas: list[int] = []
     masks: list[np.ndarray] = []
     for c in contours:
         x, y, w, h = cv2.boundingRect(c)
-        if w * h < bounds.min_area_px:
+        if (w + 2 * pad) * (h + 2 * pad) < min_area:
             continue
-        m = np.zeros((h, w), np.uint8)
-        cv2.drawContours(m, [c], -1, 1, thickness=cv2.FILLED, offset=(-x, -y))
+        x0, y0 = max(0, x - pad), max(0, y - pad)
+        x1, y1 = min(W, x + w + pad), min(H, y + h + pad)
+        m = np.zeros((y1 - y0, x1 - x0), np.uint8)
+        cv2.drawContours(m, [c], -1, 1, thickness=cv2.FILLED, offset=(-x0, -y0))
+        if pad:
+            m = cv2.dilate(m, _kernel(k))
         area = cv2.countNonZero(m)
-        if area < bounds.min_area_px:
+        if area < min_area:
             continue
-        boxes.append((x, y, w, h))
+        boxes.append((x0, y0, x1 - x0, y1 - y0))
         areas.append(area)
         masks.append(m)
     if not boxes:
         return Regions.empty()
-    return Regions(np.asarray(boxes, np.int64), np.asarray(areas, np.int64), tuple(masks), mask)
+    return Regions(np.asarray(boxes, np.int64), np.asarray(areas, np.int64), tuple(masks))
 
 
 def hand_map(high: np.ndarray, depth: np.ndarray, bounds: BandBounds) -> np.ndarray:
@@ -210,16 +243,22 @@ def hand_map(high: np.ndarray, depth: np.ndarray, bounds: BandBounds) -> np.ndar
         cv2.inRange(cv2.resize(depth, size, interpolation=cv2.INTER_NEAREST), 0, 0), small_valid)
     small = cv2.dilate(cv2.bitwise_or(cv2.inRange(small_high, 1, 255), small_zero),
                        _kernel(3))
-    n, labels, stats, _ = cv2.connectedComponentsWithStats(small, connectivity=8, ltype=cv2.CV_16U)
-    sh, sw = small.shape
-    x, y, bw, bh = stats[:, 0], stats[:, 1], stats[:, 2], stats[:, 3]
-    big = stats[:, cv2.CC_STAT_AREA] * (HAND_SCALE * bounds.mm_per_px) ** 2 >= bounds.min_hand_mm2
-    at_border = (x == 0) | (y == 0) | (x + bw >= sw) | (y + bh >= sh)
-    border = np.where(at_border, 2, np.where(big, 1, 0)).astype(np.uint8)
-    border[0] = 0
+    n, labels = cv2.connectedComponents(small, connectivity=8, ltype=cv2.CV_16U)
+    level = np.zeros(n, np.uint8)
+    # labels on the view's edge: parts reaching in from outside it (labelling without stats
+    # and looking at the four edges costs a third of labelling with stats)
+    edge = np.concatenate([labels[0], labels[-1], labels[:, 0], labels[:, -1]])
+    level[edge] = 2
+    level[0] = 0
+    inner = np.flatnonzero(level[1:] == 0) + 1
+    if inner.size:
+        # parts inside the view: a hand only when large enough
+        area = np.bincount(labels.ravel(), minlength=n)
+        big = area * (HAND_SCALE * bounds.mm_per_px) ** 2 >= bounds.min_hand_mm2
+        level[inner[big[inner]]] = 1
     # one more coarse pixel around it: the coarse grid must not cut off the last pixels of an
     # arm next to a fingertip (the caller intersects with the full-resolution mask)
-    return cv2.dilate(border[labels], _kernel(3))
+    return cv2.dilate(level[labels], _kernel(3))
 
 
 def hand_window(hands: np.ndarray, x0: int, y0: int, x1: int, y1: int) -> np.ndarray:

@@ -1,0 +1,599 @@
+"""The compiled per-frame kernel of :mod:`depthtouch.touchpoints` (numba, cached on disk).
+
+The steps are those described in :mod:`depthtouch.touchpoints`; here they run over all regions
+of a frame in one compiled call, each on a small window around its region. Done with numpy and
+OpenCV, the same work is some 150 small array calls per frame whose Python overhead (2-5 us
+each) costs more than the pixels; compiled, a frame with five touches takes a few tens of
+microseconds. ``tests/reference_touchpoints.py`` keeps the array-call version, and the tests
+check that both give the same points.
+
+Layout of the arrays handed in: ``boxes`` (R, 4) int64 region boxes (x, y, w, h); ``masks``
+all region masks (uint8, 1 = in, row-major within its box) one after the other, region i
+starting at ``mask_start[i]``. Output rows: x, y (image px, sub-pixel), height (mm, NaN when
+unknown), area (px), hand x, hand y (px), hand at border (0/1).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+
+N_OUT = 7
+_A, _B = 0.955, 1.3693  # OpenCV's 3x3 distance-transform weights (DIST_L2, mask 3)
+_INF = 1e30
+
+
+@numba.njit(cache=True, nogil=True)
+def _chebyshev(mask: np.ndarray, cap: int) -> np.ndarray:
+    """Chessboard distance (px) of every pixel to the nearest pixel of ``mask``, at most cap."""
+    h, w = mask.shape
+    d = np.empty((h, w), np.int32)
+    for y in range(h):
+        for x in range(w):
+            if mask[y, x]:
+                d[y, x] = 0
+                continue
+            v = cap
+            if x > 0 and d[y, x - 1] + 1 < v:
+                v = d[y, x - 1] + 1
+            if y > 0:
+                if d[y - 1, x] + 1 < v:
+                    v = d[y - 1, x] + 1
+                if x > 0 and d[y - 1, x - 1] + 1 < v:
+                    v = d[y - 1, x - 1] + 1
+                if x < w - 1 and d[y - 1, x + 1] + 1 < v:
+                    v = d[y - 1, x + 1] + 1
+            d[y, x] = v
+    for y in range(h - 1, -1, -1):
+        for x in range(w - 1, -1, -1):
+            v = d[y, x]
+            if v == 0:
+                continue
+            if x < w - 1 and d[y, x + 1] + 1 < v:
+                v = d[y, x + 1] + 1
+            if y < h - 1:
+                if d[y + 1, x] + 1 < v:
+                    v = d[y + 1, x] + 1
+                if x < w - 1 and d[y + 1, x + 1] + 1 < v:
+                    v = d[y + 1, x + 1] + 1
+                if x > 0 and d[y + 1, x - 1] + 1 < v:
+                    v = d[y + 1, x - 1] + 1
+            d[y, x] = v
+    return d
+
+
+@numba.njit(cache=True, nogil=True)
+def _chamfer(mask: np.ndarray) -> np.ndarray:
+    """Approximate Euclidean distance (px) to the nearest pixel of ``mask`` (3x3 chamfer)."""
+    h, w = mask.shape
+    d = np.full((h, w), _INF, np.float64)
+    for y in range(h):
+        for x in range(w):
+            if mask[y, x]:
+                d[y, x] = 0.0
+                continue
+            v = d[y, x]
+            if x > 0:
+                v = min(v, d[y, x - 1] + _A)
+            if y > 0:
+                v = min(v, d[y - 1, x] + _A)
+                if x > 0:
+                    v = min(v, d[y - 1, x - 1] + _B)
+                if x < w - 1:
+                    v = min(v, d[y - 1, x + 1] + _B)
+            d[y, x] = v
+    for y in range(h - 1, -1, -1):
+        for x in range(w - 1, -1, -1):
+            v = d[y, x]
+            if x < w - 1:
+                v = min(v, d[y, x + 1] + _A)
+            if y < h - 1:
+                v = min(v, d[y + 1, x] + _A)
+                if x < w - 1:
+                    v = min(v, d[y + 1, x + 1] + _B)
+                if x > 0:
+                    v = min(v, d[y + 1, x - 1] + _B)
+            d[y, x] = v
+    return d
+
+
+@numba.njit(cache=True, nogil=True)
+def _smooth_heights(depth: np.ndarray, surf: np.ndarray, fact: np.ndarray, valid: np.ndarray,
+                    to_mm: float, x0: int, y0: int, h: int, w: int) -> np.ndarray:
+    """Height (mm) over the window, 3x3 mean of the known pixels; NaN where fewer than 3 of 9
+    are known."""
+    hm = np.zeros((h, w), np.float64)
+    ok = np.zeros((h, w), np.float64)
+    for y in range(h):
+        for x in range(w):
+            d = depth[y0 + y, x0 + x]
+            if d > 0 and valid[y0 + y, x0 + x]:
+                hm[y, x] = (surf[y0 + y, x0 + x] - d * to_mm) * fact[y0 + y, x0 + x]
+                ok[y, x] = 1.0
+    # 3-wide sums along rows, then along columns
+    rs = np.zeros((h, w), np.float64)
+    rc = np.zeros((h, w), np.float64)
+    for y in range(h):
+        for x in range(w):
+            a = hm[y, x]
+            c = ok[y, x]
+            if x > 0:
+                a += hm[y, x - 1]
+                c += ok[y, x - 1]
+            if x < w - 1:
+                a += hm[y, x + 1]
+                c += ok[y, x + 1]
+            rs[y, x] = a
+            rc[y, x] = c
+    out = np.full((h, w), np.nan, np.float64)
+    for y in range(h):
+        for x in range(w):
+            num = rs[y, x]
+            den = rc[y, x]
+            if y > 0:
+                num += rs[y - 1, x]
+                den += rc[y - 1, x]
+            if y < h - 1:
+                num += rs[y + 1, x]
+                den += rc[y + 1, x]
+            if den >= 2.5:  # at least 3 of 9 known
+                out[y, x] = num / den
+    return out
+
+
+@numba.njit(cache=True, nogil=True)
+def _attach(near: np.ndarray, reach: int, high: np.ndarray, hands: np.ndarray, scale: int,
+            x0: int, y0: int) -> tuple[int, float, float, bool]:
+    """Hand pixels within ``reach`` px (chessboard) of a mask: count, mean x, y (window), and
+    whether any belongs to an arm reaching in from the border (hand map level 2)."""
+    h, w = near.shape
+    sh, sw = hands.shape
+    n = 0
+    sx = 0.0
+    sy = 0.0
+    border = False
+    for y in range(h):
+        for x in range(w):
+            if near[y, x] > reach or not high[y0 + y, x0 + x]:
+                continue
+            cy, cx = (y0 + y) // scale, (x0 + x) // scale
+            if cy >= sh or cx >= sw:
+                continue
+            lev = hands[cy, cx]
+            if lev >= 1:
+                n += 1
+                sx += x
+                sy += y
+                if lev == 2:
+                    border = True
+    if n == 0:
+        return 0, 0.0, 0.0, False
+    return n, sx / n, sy / n, border
+
+
+@numba.njit(cache=True, nogil=True)
+def _split(lat: np.ndarray, s: np.ndarray, r0: float) -> np.ndarray:
+    """Part index (0..) of each region pixel: fingertips side by side merged into one region.
+
+    Seen along the finger direction (from the hand), the region's front, per 1-px lateral slice
+    (``lat``), has one bump per fingertip (tips are round). Bumps at least 1.6 tip radii apart
+    with a notch of at least half a radius between them are separate fingers, cut at the notch.
+    The notch is measured below the chord from one bump to the other (the front's convex hull),
+    not below the lower bump: a single tip's front is a dome (no point of it lies below a chord)
+    and stays whole, and so does a finger seen at a slant (a ramp).
+    """
+    n = lat.shape[0]
+    lmin = lat.min()
+    lb = np.empty(n, np.int64)
+    for i in range(n):
+        lb[i] = int(lat[i] - lmin)
+    m = lb.max() + 1
+    front = np.full(m, -np.inf)
+    for i in range(n):
+        if s[i] > front[lb[i]]:
+            front[lb[i]] = s[i]
+    # a bump is the highest slice within half a tip radius either side: that stays on the tip's
+    # own dome, while a wider window reaches the flank of a longer finger beside it
+    w = max(1, int(math.ceil(0.5 * r0)))
+    cuts = np.empty(m, np.int64)
+    n_cuts = 0
+    last = -1
+    for p in range(m):
+        if not np.isfinite(front[p]):
+            continue
+        top = -np.inf
+        for q in range(max(0, p - w), min(m, p + w + 1)):
+            top = max(top, front[q])
+        if front[p] != top:
+            continue  # not a peak
+        if last >= 0 and p - last >= 1.6 * r0:
+            # the notch below the chord from one bump to the other: fingers of different
+            # lengths stand staggered, and the shorter one's tip rises little above the notch
+            valley = last
+            deepest = -np.inf
+            for q in range(last, p + 1):
+                chord = front[last] + (front[p] - front[last]) * (q - last) / (p - last)
+                if chord - front[q] > deepest:
+                    deepest = chord - front[q]
+                    valley = q
+            if deepest >= 0.5 * r0:
+                cuts[n_cuts] = valley
+                n_cuts += 1
+                last = p
+                continue
+        if last < 0 or front[p] > front[last]:
+            last = p
+    part = np.zeros(n, np.int64)
+    for i in range(n):
+        for c in range(n_cuts):
+            if lb[i] > cuts[c]:
+                part[i] += 1
+    return part
+
+
+@numba.njit(cache=True, nogil=True)
+def _extremity(finger_x: np.ndarray, finger_y: np.ndarray, hs: np.ndarray, hx: float, hy: float,
+               ux: float, uy: float, r0: float) -> tuple[float, float, float]:
+    """Contact point (window px) and tip height of one finger's pixels."""
+    n = finger_x.shape[0]
+    s = np.empty(n)
+    lat = np.empty(n)
+    for i in range(n):
+        px, py = finger_x[i] - hx, finger_y[i] - hy
+        s[i] = px * ux + py * uy
+        lat[i] = py * ux - px * uy
+    # front: the farthest 1-px slice at least half a tip radius wide
+    s0 = s.min()
+    nb = int(s.max() - s0) + 1
+    counts = np.zeros(nb, np.int64)
+    for i in range(n):
+        counts[int(s[i] - s0)] += 1
+    last = nb - 1
+    thr = max(1.0, 0.5 * r0)
+    found = False
+    for b in range(nb - 1, -1, -1):
+        if counts[b] >= thr:
+            last = b
+            found = True
+            break
+    if not found:
+        last = nb - 1
+    sf = s0 + last + 1.0
+    # finger width in a slab behind the tip cap -> radius
+    n_slab = 0
+    for i in range(n):
+        if s[i] > sf - 3.0 * r0 and s[i] <= sf - r0:
+            n_slab += 1
+    r = min(max(n_slab / (4.0 * r0), 0.6 * r0), 1.5 * r0)
+    n_cap = 0
+    l_sum = 0.0
+    for i in range(n):
+        if s[i] > sf - 2.0 * r:
+            n_cap += 1
+            l_sum += lat[i]
+    l_c = l_sum / max(1, n_cap)
+    # the tip centre: where the count from the front reaches pi r^2 / 2
+    ahead = np.empty(n)
+    n_ahead = 0
+    for i in range(n):
+        if abs(lat[i] - l_c) <= r + 0.5 and s[i] > sf - 3.0 * r:
+            ahead[n_ahead] = -s[i]
+            n_ahead += 1
+    k = int(np.rint(math.pi * r * r / 2.0))
+    if n_ahead:
+        srt = np.sort(ahead[:n_ahead])
+        s_c = -srt[min(k, n_ahead - 1)]
+    else:
+        s_c = sf - r
+    x = hx + s_c * ux - l_c * uy
+    y = hy + s_c * uy + l_c * ux
+    # the tip's height: the lower quarter of the cap's smoothed heights
+    hv = np.empty(n)
+    n_h = 0
+    for i in range(n):
+        if s[i] > sf - 2.0 * r:
+            v = hs[finger_y[i], finger_x[i]]
+            if v == v:
+                hv[n_h] = v
+                n_h += 1
+    if n_h == 0:
+        return x, y, np.nan
+    srt_h = np.sort(hv[:n_h])
+    return x, y, srt_h[n_h // 4]
+
+
+@numba.njit(cache=True, nogil=True)
+def _paper(part: np.ndarray, hs: np.ndarray, hx: float, hy: float, ds: int, tt: float
+           ) -> tuple[float, float, float, bool]:
+    """The paper's touch pixel of one region (window px) and its height; False when none."""
+    h, w = part.shape
+    bx0, bx1, by0, by1 = w, -1, h, -1
+    sx = 0.0
+    sy = 0.0
+    n = 0
+    for y in range(h):
+        for x in range(w):
+            if part[y, x]:
+                bx0, bx1 = min(bx0, x), max(bx1, x)
+                by0, by1 = min(by0, y), max(by1, y)
+                sx += x
+                sy += y
+                n += 1
+    if n == 0:
+        return 0.0, 0.0, np.nan, False
+    dx, dy = sx / n - hx, sy / n - hy
+    # the search band: Ds px inside the bounding-box edge away from the hand
+    sx0, sx1, sy0, sy1 = bx0, bx1, by0, by1
+    if abs(dx) >= abs(dy):
+        if dx >= 0:
+            sx0 = max(bx1 - ds + 1, bx0)
+        else:
+            sx1 = min(bx0 + ds - 1, bx1)
+    else:
+        if dy >= 0:
+            sy0 = max(by1 - ds + 1, by0)
+        else:
+            sy1 = min(by0 + ds - 1, by1)
+    norm = max(math.hypot(dx, dy), 1e-9)
+    ux, uy = dx / norm, dy / norm
+    best = -np.inf
+    bxp, byp = -1, -1
+    for y in range(sy0, sy1 + 1):
+        for x in range(sx0, sx1 + 1):
+            if not _candidate(part, hs, x, y, tt):
+                continue
+            # a 3x3 block around it: full, or a 2x3 / 3x2 half on one side
+            c = np.zeros((3, 3), np.bool_)
+            for j in range(3):
+                for i in range(3):
+                    c[j, i] = _candidate(part, hs, x + i - 1, y + j - 1, tt)
+            full = c.all()
+            top = c[0, :].all() and c[1, :].all()
+            bottom = c[1, :].all() and c[2, :].all()
+            left = c[:, 0].all() and c[:, 1].all()
+            right = c[:, 1].all() and c[:, 2].all()
+            if not (full or top or bottom or left or right):
+                continue
+            sv = (x - hx) * ux + (y - hy) * uy
+            if sv > best:
+                best, bxp, byp = sv, x, y
+    if bxp < 0:
+        return 0.0, 0.0, np.nan, False
+    return float(bxp), float(byp), hs[byp, bxp], True
+
+
+@numba.njit(cache=True, nogil=True)
+def _candidate(part: np.ndarray, hs: np.ndarray, x: int, y: int, tt: float) -> bool:
+    h, w = part.shape
+    if x < 0 or y < 0 or x >= w or y >= h or not part[y, x]:
+        return False
+    v = hs[y, x]
+    return v == v and v < tt
+
+
+@numba.njit(cache=True, nogil=True)
+def frame_points(
+    depth: np.ndarray, high: np.ndarray, hands: np.ndarray, scale: int,
+    surf: np.ndarray, fact: np.ndarray, tl: np.ndarray, valid: np.ndarray, to_mm: float,
+    core: np.ndarray, open_pad: int, boxes: np.ndarray, masks: np.ndarray, mask_start: np.ndarray,
+    r0: float, method: int, paper_ds: int, paper_tt: float,
+) -> np.ndarray:
+    """Touch points of all regions of a frame: (N, 7) rows (see the module doc).
+
+    Each region is worked on in a window 2 rr + 2 px around its box (the growth reaches 2 rr,
+    the hand attaches within 2 px); the band 3 r0 + 3 px around it is looked at only when other
+    regions (or other fingertips of the same region) are near, for the nearest-region test.
+    """
+    H, W = depth.shape
+    R = boxes.shape[0]
+    rr = max(1, int(np.rint(r0)))
+    m_in = 2 * rr + 2
+    m_out = int(math.ceil(3.0 * r0)) + 3
+    out = np.empty((4 * R + 4, N_OUT))
+    n_out = 0
+    for i in range(R):
+        bx, by, bw, bh = boxes[i, 0], boxes[i, 1], boxes[i, 2], boxes[i, 3]
+        x0, y0 = max(0, bx - m_in), max(0, by - m_in)
+        x1, y1 = min(W, bx + bw + m_in), min(H, by + bh + m_in)
+        h, w = y1 - y0, x1 - x0
+        reg = np.zeros((h, w), np.uint8)
+        area = 0
+        k = mask_start[i]
+        for yy in range(bh):
+            for xx in range(bw):
+                if masks[k + yy * bw + xx]:
+                    reg[by - y0 + yy, bx - x0 + xx] = 1
+                    area += 1
+        if area == 0:
+            continue
+        # --- the hand: hand pixels next to the region (a flat object or noise has none) ----
+        near = _chebyshev(reg, 3)
+        n_att, hx, hy, border = _attach(near, 2, high, hands, scale, x0, y0)
+        if n_att < 3:
+            continue
+        ex = np.empty(area, np.int64)
+        ey = np.empty(area, np.int64)
+        k = 0
+        for y in range(h):
+            for x in range(w):
+                if reg[y, x]:
+                    ex[k], ey[k] = x, y
+                    k += 1
+        cx, cy = ex.mean(), ey.mean()
+        dx, dy = cx - hx, cy - hy
+        norm = math.hypot(dx, dy)
+        if norm < 1e-6:
+            continue
+        ux, uy = dx / norm, dy / norm
+        s = np.empty(area)
+        lat = np.empty(area)
+        for j in range(area):
+            px, py = ex[j] - hx, ey[j] - hy
+            s[j] = px * ux + py * uy
+            lat[j] = py * ux - px * uy
+        along = s.max() - s.min() + 1.0
+        across = lat.max() - lat.min() + 1.0
+        # a thin strip along the side of something raised: an edge, not a finger
+        if along < r0 or (along < 1.5 * r0 and across > 3.0 * along):
+            continue
+        part_of = _split(lat, s, r0) if area > 10.0 * r0 * r0 else np.zeros(area, np.int64)
+        n_parts = part_of.max() + 1
+        # other regions near (or other fingertips of this one): the finger grows only into
+        # pixels nearer to it than to them
+        ox0, oy0 = max(0, bx - m_out), max(0, by - m_out)
+        ox1, oy1 = min(W, bx + bw + m_out), min(H, by + bh + m_out)
+        if R > 1 or n_parts > 1:
+            band = _band_near(core, open_pad, reg, x0, y0, ox0, oy0, ox1, oy1, n_parts > 1)
+        else:  # alone in the frame: specks of noise nearby do not count
+            band = np.zeros((0, 0), np.uint8)
+        hs = _smooth_heights(depth, surf, fact, valid, to_mm, x0, y0, h, w)
+        for p in range(n_parts):
+            part = np.zeros((h, w), np.uint8)
+            n_p = 0
+            sx = 0.0
+            sy = 0.0
+            for j in range(area):
+                if part_of[j] == p:
+                    part[ey[j], ex[j]] = 1
+                    n_p += 1
+                    sx += ex[j]
+                    sy += ey[j]
+            if n_p == 0:
+                continue
+            phx, phy, pborder = hx, hy, border
+            if n_parts > 1:
+                na, ax, ay, ab = _attach(_chebyshev(part, 3), 2, high, hands, scale, x0, y0)
+                if na >= 3:
+                    phx, phy, pborder = ax, ay, ab
+            if method == 1:
+                px_, py_, ph, ok = _paper(part, hs, phx, phy, paper_ds, paper_tt)
+                if not ok:
+                    continue
+            else:
+                ddx, ddy = sx / n_p - phx, sy / n_p - phy
+                nn = math.hypot(ddx, ddy)
+                if nn < 1e-6:
+                    continue
+                own = _own(part, band, x0 - ox0, y0 - oy0)
+                fx, fy = _grow(part, own, hs, tl, x0, y0, rr)
+                px_, py_, ph = _extremity(fx, fy, hs, phx, phy, ddx / nn, ddy / nn, r0)
+            out[n_out, 0] = px_ + x0
+            out[n_out, 1] = py_ + y0
+            out[n_out, 2] = ph
+            out[n_out, 3] = n_p
+            out[n_out, 4] = phx + x0
+            out[n_out, 5] = phy + y0
+            out[n_out, 6] = 1.0 if pborder else 0.0
+            n_out += 1
+            if n_out == out.shape[0]:
+                return out[:n_out]
+    return out[:n_out]
+
+
+@numba.njit(cache=True, nogil=True)
+def _band_near(core: np.ndarray, pad: int, reg: np.ndarray, x0: int, y0: int,
+               ox0: int, oy0: int, ox1: int, oy1: int, force: bool) -> np.ndarray:
+    """The band (the eroded ``core`` dilated by ``pad``) over the outer window [oy0:oy1,
+    ox0:ox1], or an empty (0, 0) array when it holds nothing but the region itself (``reg``,
+    at x0, y0) and ``force`` is False."""
+    H, W = core.shape
+    h, w = reg.shape
+    found = force
+    if not found:
+        for gy in range(oy0, oy1):
+            for gx in range(ox0, ox1):
+                if core[gy, gx]:
+                    ry, rx = gy - y0, gx - x0
+                    if ry < 0 or rx < 0 or ry >= h or rx >= w or not reg[ry, rx]:
+                        found = True
+                        break
+            if found:
+                break
+    if not found:
+        return np.zeros((0, 0), np.uint8)
+    band = np.zeros((oy1 - oy0, ox1 - ox0), np.uint8)
+    for gy in range(oy0, oy1):
+        for gx in range(ox0, ox1):
+            if not core[gy, gx]:
+                continue
+            for yy in range(max(oy0, gy - pad), min(oy1, gy + pad + 1)):
+                for xx in range(max(ox0, gx - pad), min(ox1, gx + pad + 1)):
+                    band[yy - oy0, xx - ox0] = 1
+    return band
+
+
+@numba.njit(cache=True, nogil=True)
+def _own(part: np.ndarray, band: np.ndarray, dx: int, dy: int) -> np.ndarray:
+    """Pixels of the part's window nearer to the part than to any other band pixel (all, when
+    ``band`` is empty); the part's window sits at (dx, dy) in the band's."""
+    h, w = part.shape
+    own = np.ones((h, w), np.bool_)
+    if band.shape[0] == 0:
+        return own
+    bh, bw = band.shape
+    mine = np.zeros((bh, bw), np.uint8)
+    for y in range(h):
+        for x in range(w):
+            if part[y, x]:
+                mine[y + dy, x + dx] = 1
+    others = np.zeros((bh, bw), np.uint8)
+    n_o = 0
+    for y in range(bh):
+        for x in range(bw):
+            if band[y, x] and not mine[y, x]:
+                others[y, x] = 1
+                n_o += 1
+    if n_o == 0:
+        return own
+    d_own = _chamfer(mine)
+    d_oth = _chamfer(others)
+    for y in range(h):
+        for x in range(w):
+            own[y, x] = d_own[y + dy, x + dx] <= d_oth[y + dy, x + dx]
+    return own
+
+
+@numba.njit(cache=True, nogil=True)
+def _grow(part: np.ndarray, own: np.ndarray, hs: np.ndarray, tl: np.ndarray, x0: int, y0: int,
+          rr: int) -> tuple[np.ndarray, np.ndarray]:
+    """The finger's pixels near its tip: the part grown into raised pixels within 2 rr of it
+    that are its ``own``, and connected to it (4-neighbours)."""
+    h, w = part.shape
+    reach = _chebyshev(part, 2 * rr + 1)
+    grown = np.zeros((h, w), np.uint8)
+    for y in range(h):
+        for x in range(w):
+            if part[y, x]:
+                grown[y, x] = 1
+            elif reach[y, x] <= 2 * rr and own[y, x]:
+                v = hs[y, x]
+                if v == v and v > max(0.5 * tl[y0 + y, x0 + x], 2.0):
+                    grown[y, x] = 1
+    # keep what is connected to the part
+    stack_y = np.empty(h * w, np.int64)
+    stack_x = np.empty(h * w, np.int64)
+    top = 0
+    for y in range(h):
+        for x in range(w):
+            if part[y, x]:
+                grown[y, x] = 2
+                stack_y[top], stack_x[top] = y, x
+                top += 1
+    fx = np.empty(h * w, np.int64)
+    fy = np.empty(h * w, np.int64)
+    n = 0
+    while top > 0:
+        top -= 1
+        y, x = stack_y[top], stack_x[top]
+        fx[n], fy[n] = x, y
+        n += 1
+        for k in range(4):
+            yy = y + (1 if k == 0 else -1 if k == 1 else 0)
+            xx = x + (1 if k == 2 else -1 if k == 3 else 0)
+            if 0 <= yy < h and 0 <= xx < w and grown[yy, xx] == 1:
+                grown[yy, xx] = 2
+                stack_y[top], stack_x[top] = yy, xx
+                top += 1
+    return fx[:n], fy[:n]
