@@ -11,7 +11,7 @@ import cv2
 import numpy as np
 
 from depthtouch.config import TouchPointConfig
-from depthtouch.regions import BandBounds, Regions, hand_map, hand_window
+from depthtouch.regions import HAND_SCALE, BandBounds, Regions, _kernel
 from depthtouch.types import TouchPoints
 
 _K3 = np.ones((3, 3), np.uint8)
@@ -147,6 +147,66 @@ def find_touch_points(
         np.asarray(a_out, np.int64), np.asarray(hand_out, np.float64),
         np.asarray(border_out, bool),
     )
+
+
+def hand_map(high: np.ndarray, depth: np.ndarray, bounds: BandBounds) -> np.ndarray:
+    """Where hands are: parts above Tu connected to the image border, at 1/4 resolution (uint8:
+    2 = connected to the border, 1 = large enough to be a hand, 0 = no hand).
+
+    People reach into the view from outside it, so a hand is normally attached, through its arm,
+    to the border; an object standing on the surface, tall or not, is not. Where the view is so
+    wide that a whole arm is in it, a raised part of at least ``min_hand_mm2`` counts too (a tall
+    object that large counts until the surface absorbs it, about a second after it was put
+    down). Missing depth over a usable surface pixel counts as raised too: an arm close to the
+    camera is often nearer than the camera can measure. Sampled bilinearly and dilated, so that a
+    thin finger does not fall apart at 1/4 resolution.
+    """
+    h, w = high.shape
+    if bounds.valid_u8 is None:
+        raise ValueError("hand_map: bounds without valid_u8")
+    size = (max(1, w // HAND_SCALE), max(1, h // HAND_SCALE))
+    # bilinear samples between pixels: a sample is non-zero when any of its 2x2 pixels is high
+    small_high = cv2.resize(high, size, interpolation=cv2.INTER_LINEAR)
+    small_valid = bounds.small_valid
+    if small_valid is None or small_valid.shape != (size[1], size[0]):
+        small_valid = cv2.resize(bounds.valid_u8, size, interpolation=cv2.INTER_NEAREST)
+    small_zero = cv2.bitwise_and(
+        cv2.inRange(cv2.resize(depth, size, interpolation=cv2.INTER_NEAREST), 0, 0), small_valid)
+    small = cv2.dilate(cv2.bitwise_or(cv2.inRange(small_high, 1, 255), small_zero),
+                       _kernel(3))
+    n, labels = cv2.connectedComponents(small, connectivity=8, ltype=cv2.CV_16U)
+    level = np.zeros(n, np.uint8)
+    # labels on the view's edge: parts reaching in from outside it (labelling without stats
+    # and looking at the four edges costs a third of labelling with stats)
+    edge = np.concatenate([labels[0], labels[-1], labels[:, 0], labels[:, -1]])
+    level[edge] = 2
+    level[0] = 0
+    inner = np.flatnonzero(level[1:] == 0) + 1
+    if inner.size:
+        # parts inside the view: a hand only when large enough
+        area = np.bincount(labels.ravel(), minlength=n)
+        big = area * (HAND_SCALE * bounds.mm_per_px) ** 2 >= bounds.min_hand_mm2
+        level[inner[big[inner]]] = 1
+    # one more coarse pixel around it: the coarse grid must not cut off the last pixels of an
+    # arm next to a fingertip (the caller intersects with the full-resolution mask)
+    return cv2.dilate(level[labels], _kernel(3))
+
+
+def hand_window(hands: np.ndarray, x0: int, y0: int, x1: int, y1: int) -> np.ndarray:
+    """The hand map's levels (0, 1, 2) over the full-resolution window [y0:y1, x0:x1]."""
+    s = HAND_SCALE
+    sy0, sx0 = y0 // s, x0 // s
+    sy1, sx1 = min(hands.shape[0], -(-y1 // s)), min(hands.shape[1], -(-x1 // s))
+    out = np.zeros((y1 - y0, x1 - x0), np.uint8)
+    block = hands[sy0:sy1, sx0:sx1]
+    if block.size == 0:
+        return out
+    up = cv2.resize(block, (block.shape[1] * s, block.shape[0] * s),
+                    interpolation=cv2.INTER_NEAREST)
+    oy, ox = y0 - sy0 * s, x0 - sx0 * s
+    part = up[oy:oy + (y1 - y0), ox:ox + (x1 - x0)]
+    out[:part.shape[0], :part.shape[1]] = part
+    return out
 
 
 def _project(pts: np.ndarray, hand: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:

@@ -67,3 +67,24 @@ def test_regions_found_and_small_ones_dropped(surface):
     assert np.all(r.area_px >= b.min_area_px)
     for m, (_x, _y, w, h) in zip(r.masks, r.bbox_xywh):
         assert m.shape == (h, w) and m.any()
+
+
+@pytest.mark.parametrize("open_px", [1, 3, 4, 5])
+@pytest.mark.parametrize("seed", [0, 1])
+def test_band_core_is_the_eroded_band(open_px, seed):
+    """The compiled band + erosion equals OpenCV's, including at the image border."""
+    import cv2
+
+    from depthtouch.regions import band_core
+
+    b = band_bounds(learn_surface(make_recording(20, [], noise_mm=1.5, seed=seed)[0], 0.001, K_640),
+                    RegionConfig(open_px=open_px))
+    rng = np.random.default_rng(seed)
+    hm = render_heights((480, 640), [Finger(100, 5, 270), Finger(630, 200, 0), Finger(320, 240, 45)],
+                        1000 / 600)
+    d = np.clip(np.rint(1000 - hm + rng.normal(0, 3.0, hm.shape)), 0, None).astype(np.uint16)
+    d[rng.random(d.shape) < 0.01] = 0
+    band, _ = band_masks(d, b)
+    k = cv2.getStructuringElement(cv2.MORPH_RECT, (b.open_px, b.open_px))
+    want = cv2.erode(band, k) if b.open_px > 1 else band
+    np.testing.assert_array_equal(band_core(d, b), want)

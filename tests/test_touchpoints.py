@@ -4,7 +4,7 @@ import pytest
 from depthtouch.config import RegionConfig, TouchPointConfig
 from depthtouch.regions import band_bounds, band_masks, find_regions
 from depthtouch.surface import learn_surface
-from depthtouch.touchpoints import find_touch_points
+from depthtouch.touchpoints import find_touch_points, hand_map
 from synth import K_640, Finger, make_recording, render_heights
 
 MM_PER_PX = 1000 / 600
@@ -25,7 +25,7 @@ def detect(bounds, fingers, method="extremity", seed=0, noise=1.5, flat=None):
     d[rng.random(d.shape) < 0.01] = 0
     band, high = band_masks(d, bounds)
     regions = find_regions(band, bounds)
-    return find_touch_points(d, high, regions, bounds, TouchPointConfig(method=method))
+    return find_touch_points(d, regions, bounds, TouchPointConfig(method=method))
 
 
 @pytest.mark.parametrize("direction", [0, 45, 90, 135, 180, 270, 300])
@@ -140,10 +140,14 @@ def test_compiled_kernel_matches_the_array_reference(scene, camera, monkeypatch)
 
     rec = render_scene(scene, camera=camera, distance_m=1.0, seed=1)
     pairs = []
+    levels: list[float] = []
 
-    def both(depth, high, regions, bounds, config):
+    def both(depth, regions, bounds, config):
+        _, high = band_masks(depth, bounds)
         ref = reference_touchpoints.find_touch_points(depth, high, regions, bounds, config)
-        got = find_touch_points(depth, high, regions, bounds, config)
+        got = find_touch_points(depth, regions, bounds, config)
+        hands_ref = reference_touchpoints.hand_map(high, depth, bounds)
+        levels.append(float(np.mean(hand_map(depth, bounds) == hands_ref)))
         pairs.append((ref, got))
         return ref
 
@@ -152,6 +156,7 @@ def test_compiled_kernel_matches_the_array_reference(scene, camera, monkeypatch)
     for i in range(rec.depth.shape[0]):
         pipe.process(Frame(rec.depth[i], float(rec.timestamps_s[i]), i, rec.depth_scale_m, rec.K))
     assert sum(len(r) for r, _ in pairs) > 50
+    assert min(levels) == 1.0  # the hand map is the same, coarse pixel for coarse pixel
     dist = []
     for ref, got in pairs:
         assert len(got) == len(ref)

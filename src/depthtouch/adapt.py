@@ -18,6 +18,7 @@ horizontal stripe of the image per frame (so the cost is spread evenly):
 from __future__ import annotations
 
 import cv2
+import numba
 import numpy as np
 
 from .config import AdaptConfig
@@ -69,10 +70,7 @@ class SurfaceAdapter:
 
     def _frame_blocks(self, depth: np.ndarray) -> np.ndarray:
         """The 1/8 view of a frame in mm; NaN where a sample touched a missing pixel."""
-        out = self._sample(depth).astype(np.float32) * np.float32(self.bounds.to_mm)
-        seen = self._sample(cv2.inRange(depth, 1, 65535))
-        out[(seen < 255) | ~self._block_valid] = np.nan
-        return out
+        return _blocks(depth, _BLOCK, float(self.bounds.to_mm), self._block_valid)
 
     def check(self, depth: np.ndarray, t: float) -> str | None:
         """Every frame: "bump" when the camera moved and the scene has settled (learn the
@@ -145,32 +143,16 @@ class SurfaceAdapter:
         tt = np.float32(t - self._t0) if self._t0 is not None else np.float32(0)
         if self._t0 is None:
             self._t0 = t
-        d = depth[rows]
-        dm = d.astype(np.float32)
-        dm *= np.float32(b.to_mm)
-        s = b.surface_mm[rows]
-        ok = (d > 0) & b.valid[rows]
-        changed = ok & (np.abs((s - dm) * b.factor[rows]) > b.tl_mm[rows])
-        since = self._since[rows]
-        if self._have_prev[k]:
-            moved = np.abs(dm - self._prev[rows]) > self._still_tol[rows]
-            restart = changed & (moved | (since == np.inf))
-        else:
-            restart = changed
-        np.copyto(since, np.inf, where=~changed)
-        np.copyto(since, tt, where=restart)
-        absorb = changed & ((tt - since) >= np.float32(cfg.absorb_s)) & ~self._exclude[rows]
-        n_abs = int(np.count_nonzero(absorb))
-        if n_abs:
-            np.copyto(s, dm, where=absorb)
-            np.copyto(since, np.inf, where=absorb)
-            self.absorbed_px += n_abs
         last = self._visit_t[k]
-        if np.isfinite(last) and t > last:
-            alpha = np.float32(min(1.0, (t - last) / cfg.drift_tau_s))
-            np.copyto(s, s + alpha * (dm - s), where=ok & ~changed)
+        alpha = (min(1.0, (t - last) / cfg.drift_tau_s)
+                 if np.isfinite(last) and t > last else -1.0)
+        n_abs = _stripe_update(
+            depth[rows], b.surface_mm[rows], b.factor[rows], b.tl_mm[rows], b.valid[rows],
+            self._since[rows], self._prev[rows], self._still_tol[rows], self._exclude[rows],
+            float(b.to_mm), float(tt), float(cfg.absorb_s), bool(self._have_prev[k]), alpha,
+        )
+        self.absorbed_px += n_abs
         self._visit_t[k] = t
-        self._prev[rows] = dm
         self._have_prev[k] = True
         self._visits[k] += 1
         # the drift moves the bounds by fractions of a unit: refreshing them every 8th visit is
@@ -204,3 +186,65 @@ class SurfaceAdapter:
             for x_px, y_px in np.asarray(touch_xy_px, np.float64):
                 cv2.circle(excl, (int(x_px / _SCALE), int(y_px / _SCALE)), r, 1, thickness=-1)
         self._exclude = cv2.resize(excl, (w, h), interpolation=cv2.INTER_NEAREST) > 0
+
+
+@numba.njit(cache=True, nogil=True)
+def _stripe_update(
+    depth: np.ndarray, surface_mm: np.ndarray, factor: np.ndarray, tl_mm: np.ndarray,
+    valid: np.ndarray, since: np.ndarray, prev: np.ndarray, still_tol: np.ndarray,
+    exclude: np.ndarray, to_mm: float, tt: float, absorb_s: float, have_prev: bool,
+    alpha: float,
+) -> int:
+    """One stripe of :meth:`SurfaceAdapter.update`, pixel by pixel in one compiled pass
+    (updates ``surface_mm``, ``since`` and ``prev`` in place; returns the pixels absorbed).
+
+    A pixel off the surface by more than its Tl is "changed"; its ``since`` restarts when it
+    moved by more than ``still_tol`` since the last visit; a change still for ``absorb_s`` and
+    not excluded becomes surface. Unchanged pixels follow the frame by ``alpha`` (drift;
+    alpha < 0: not this visit).
+    """
+    h, w = depth.shape
+    n_abs = 0
+    for y in range(h):
+        for x in range(w):
+            d = depth[y, x]
+            dm = np.float32(d) * np.float32(to_mm)
+            s = surface_mm[y, x]
+            ok = d > 0 and valid[y, x]
+            changed = ok and abs((s - dm) * factor[y, x]) > tl_mm[y, x]
+            if not changed:
+                since[y, x] = np.inf
+                if ok and alpha >= 0.0:
+                    surface_mm[y, x] = s + np.float32(alpha) * (dm - s)
+            else:
+                if not have_prev or since[y, x] == np.inf or \
+                        abs(dm - prev[y, x]) > still_tol[y, x]:
+                    since[y, x] = tt
+                if tt - since[y, x] >= absorb_s and not exclude[y, x]:
+                    surface_mm[y, x] = dm
+                    since[y, x] = np.inf
+                    n_abs += 1
+            prev[y, x] = dm
+    return n_abs
+
+
+@numba.njit(cache=True, nogil=True)
+def _blocks(depth: np.ndarray, block: int, to_mm: float, block_valid: np.ndarray) -> np.ndarray:
+    """The 1/``block`` view of a frame in mm, sampled as :meth:`SurfaceAdapter._sample` does
+    (the mean of the 2x2 pixels halfway in each block); NaN where one of them is missing or
+    the block's surface is not usable."""
+    H, W = depth.shape
+    bh, bw = max(1, H // block), max(1, W // block)
+    out = np.full((bh, bw), np.nan, np.float32)
+    c = block // 2 - 1
+    for j in range(bh):
+        ya, yb = min(H - 1, block * j + c), min(H - 1, block * j + c + 1)
+        for i in range(bw):
+            if not block_valid[j, i]:
+                continue
+            xa, xb = min(W - 1, block * i + c), min(W - 1, block * i + c + 1)
+            a, b_, c_, d = depth[ya, xa], depth[ya, xb], depth[yb, xa], depth[yb, xb]
+            if a == 0 or b_ == 0 or c_ == 0 or d == 0:
+                continue
+            out[j, i] = np.float32((np.float64(a) + b_ + c_ + d) * 0.25 * to_mm)
+    return out

@@ -90,7 +90,7 @@ class RegionConfig:
     open_px: side of the square opening applied to the band mask before labelling, which removes
         one-pixel noise and depth-edge slivers (default 3; 1 = off).
     min_hand_mm2: a raised part not connected to the image border counts as a hand when at least
-        this large (default 6000 mm^2, a palm); see regions.hand_map.
+        this large (default 6000 mm^2, a palm); see touchpoints.hand_map.
     median_px: a median filter of this size (1 = off, 3 or 5) on every depth frame, the surface
         frames included, before anything else: it removes isolated missing pixels and flying
         pixels and halves stereo noise, so that Tl (which follows the filtered noise) can be low

@@ -11,6 +11,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import cv2
+import numba
 import numpy as np
 
 from .config import RegionConfig
@@ -114,6 +115,11 @@ def refresh_rows(bounds: BandBounds, y0: int, y1: int) -> None:
     bounds.high_lo[rows], bounds.high_hi[rows] = hl, hh
 
 
+def band_mask(depth: np.ndarray, bounds: BandBounds) -> np.ndarray:
+    """The band mask (uint8, 255 = Tl < height < Tu) of a raw depth frame; zeros are not in it."""
+    return cv2.inRange(depth, bounds.band_lo, bounds.band_hi)
+
+
 def band_masks(depth: np.ndarray, bounds: BandBounds) -> tuple[np.ndarray, np.ndarray]:
     """(band, high) uint8 masks (255 = in) of a raw depth frame; zeros are in neither."""
     band = cv2.inRange(depth, bounds.band_lo, bounds.band_hi)
@@ -164,30 +170,86 @@ def find_regions(band: np.ndarray, bounds: BandBounds) -> Regions:
     two parts come so close that their dilations could join is the whole frame dilated.
     """
     k = bounds.open_px
-    core = cv2.erode(band, _kernel(k)) if k > 1 else band
+    return regions_of_core(cv2.erode(band, _kernel(k)) if k > 1 else band, bounds)
+
+
+def band_core(depth: np.ndarray, bounds: BandBounds) -> np.ndarray:
+    """The band mask of a raw depth frame eroded by ``open_px`` (uint8, 255 = in), in one
+    compiled pass: equal to ``cv2.erode(band_mask(depth, bounds), open_px square)``."""
+    k = bounds.open_px
+    if k % 2 == 0:  # an even square has no centre: OpenCV's anchor decides
+        return cv2.erode(band_mask(depth, bounds), _kernel(k))
+    return _band_core(depth, bounds.band_lo, bounds.band_hi, k // 2)
+
+
+def regions_of_core(core: np.ndarray, bounds: BandBounds) -> Regions:
+    """:func:`find_regions` from the band already eroded by ``open_px`` (see :func:`band_core`)."""
     if not cv2.hasNonZero(core):
         return Regions.empty()
+    k = bounds.open_px
     contours, _ = cv2.findContours(core, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
     pad = k // 2
-    regions = _contour_regions(contours, band.shape, bounds.min_area_px, pad, k)
+    regions = _contour_regions(contours, core.shape, bounds.min_area_px, pad, k)
     if pad and len(regions) > 1 and _any_close(regions.bbox_xywh):
         opened = cv2.dilate(core, _kernel(k))
         contours, _ = cv2.findContours(opened, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
-        regions = _contour_regions(contours, band.shape, bounds.min_area_px, 0, 1)
+        regions = _contour_regions(contours, core.shape, bounds.min_area_px, 0, 1)
     if len(regions) == 0:
         return regions
     return Regions(regions.bbox_xywh, regions.area_px, regions.masks, core)
 
 
+@numba.njit(cache=True, nogil=True)
+def _band_core(depth: np.ndarray, lo: np.ndarray, hi: np.ndarray, pad: int) -> np.ndarray:
+    """In the band where every pixel within ``pad`` (chessboard) is in it; pixels outside the
+    image count as in (as OpenCV's erosion). Rows without band pixels are skipped."""
+    H, W = depth.shape
+    band = np.empty((H, W), np.uint8)
+    rows = np.zeros(H, np.bool_)
+    for y in range(H):
+        n = 0
+        for x in range(W):
+            v = depth[y, x]
+            b = (lo[y, x] <= v) & (v <= hi[y, x])
+            band[y, x] = b
+            n += b
+        rows[y] = n > 0
+    core = np.zeros((H, W), np.uint8)
+    for y in range(H):
+        if not rows[y]:
+            continue
+        ok = True
+        for yy in range(max(0, y - pad), min(H, y + pad + 1)):
+            ok = ok and rows[yy]
+        if not ok:
+            continue
+        for x in range(W):
+            if not band[y, x]:
+                continue
+            keep = True
+            for yy in range(max(0, y - pad), min(H, y + pad + 1)):
+                for xx in range(max(0, x - pad), min(W, x + pad + 1)):
+                    if not band[yy, xx]:
+                        keep = False
+                        break
+                if not keep:
+                    break
+            if keep:
+                core[y, x] = 255
+    return core
+
+
 def _any_close(boxes: np.ndarray) -> bool:
-    """Do any two boxes (x, y, w, h) touch or overlap (8-connected)?"""
-    x0, y0 = boxes[:, 0], boxes[:, 1]
-    x1, y1 = x0 + boxes[:, 2], y0 + boxes[:, 3]
-    ox = (x0[:, None] <= x1[None, :]) & (x0[None, :] <= x1[:, None])
-    oy = (y0[:, None] <= y1[None, :]) & (y0[None, :] <= y1[:, None])
-    close = ox & oy
-    np.fill_diagonal(close, False)
-    return bool(close.any())
+    """Do any two boxes (x, y, w, h) touch or overlap (8-connected)? (A few boxes: plain
+    Python costs less than array calls.)"""
+    b = boxes.tolist()
+    for i in range(len(b)):
+        xi, yi, wi, hi = b[i]
+        for j in range(i + 1, len(b)):
+            xj, yj, wj, hj = b[j]
+            if xi <= xj + wj and xj <= xi + wi and yi <= yj + hj and yj <= yi + hi:
+                return True
+    return False
 
 
 def _contour_regions(contours: Sequence[np.ndarray], shape: tuple[int, ...], min_area: int,
@@ -216,66 +278,6 @@ def _contour_regions(contours: Sequence[np.ndarray], shape: tuple[int, ...], min
     if not boxes:
         return Regions.empty()
     return Regions(np.asarray(boxes, np.int64), np.asarray(areas, np.int64), tuple(masks))
-
-
-def hand_map(high: np.ndarray, depth: np.ndarray, bounds: BandBounds) -> np.ndarray:
-    """Where hands are: parts above Tu connected to the image border, at 1/4 resolution (uint8:
-    2 = connected to the border, 1 = large enough to be a hand, 0 = no hand).
-
-    People reach into the view from outside it, so a hand is normally attached, through its arm,
-    to the border; an object standing on the surface, tall or not, is not. Where the view is so
-    wide that a whole arm is in it, a raised part of at least ``min_hand_mm2`` counts too (a tall
-    object that large counts until the surface absorbs it, about a second after it was put
-    down). Missing depth over a usable surface pixel counts as raised too: an arm close to the
-    camera is often nearer than the camera can measure. Sampled bilinearly and dilated, so that a
-    thin finger does not fall apart at 1/4 resolution.
-    """
-    h, w = high.shape
-    if bounds.valid_u8 is None:
-        raise ValueError("hand_map: bounds without valid_u8")
-    size = (max(1, w // HAND_SCALE), max(1, h // HAND_SCALE))
-    # bilinear samples between pixels: a sample is non-zero when any of its 2x2 pixels is high
-    small_high = cv2.resize(high, size, interpolation=cv2.INTER_LINEAR)
-    small_valid = bounds.small_valid
-    if small_valid is None or small_valid.shape != (size[1], size[0]):
-        small_valid = cv2.resize(bounds.valid_u8, size, interpolation=cv2.INTER_NEAREST)
-    small_zero = cv2.bitwise_and(
-        cv2.inRange(cv2.resize(depth, size, interpolation=cv2.INTER_NEAREST), 0, 0), small_valid)
-    small = cv2.dilate(cv2.bitwise_or(cv2.inRange(small_high, 1, 255), small_zero),
-                       _kernel(3))
-    n, labels = cv2.connectedComponents(small, connectivity=8, ltype=cv2.CV_16U)
-    level = np.zeros(n, np.uint8)
-    # labels on the view's edge: parts reaching in from outside it (labelling without stats
-    # and looking at the four edges costs a third of labelling with stats)
-    edge = np.concatenate([labels[0], labels[-1], labels[:, 0], labels[:, -1]])
-    level[edge] = 2
-    level[0] = 0
-    inner = np.flatnonzero(level[1:] == 0) + 1
-    if inner.size:
-        # parts inside the view: a hand only when large enough
-        area = np.bincount(labels.ravel(), minlength=n)
-        big = area * (HAND_SCALE * bounds.mm_per_px) ** 2 >= bounds.min_hand_mm2
-        level[inner[big[inner]]] = 1
-    # one more coarse pixel around it: the coarse grid must not cut off the last pixels of an
-    # arm next to a fingertip (the caller intersects with the full-resolution mask)
-    return cv2.dilate(level[labels], _kernel(3))
-
-
-def hand_window(hands: np.ndarray, x0: int, y0: int, x1: int, y1: int) -> np.ndarray:
-    """The hand map's levels (0, 1, 2) over the full-resolution window [y0:y1, x0:x1]."""
-    s = HAND_SCALE
-    sy0, sx0 = y0 // s, x0 // s
-    sy1, sx1 = min(hands.shape[0], -(-y1 // s)), min(hands.shape[1], -(-x1 // s))
-    out = np.zeros((y1 - y0, x1 - x0), np.uint8)
-    block = hands[sy0:sy1, sx0:sx1]
-    if block.size == 0:
-        return out
-    up = cv2.resize(block, (block.shape[1] * s, block.shape[0] * s),
-                    interpolation=cv2.INTER_NEAREST)
-    oy, ox = y0 - sy0 * s, x0 - sx0 * s
-    part = up[oy:oy + (y1 - y0), ox:ox + (x1 - x0)]
-    out[:part.shape[0], :part.shape[1]] = part
-    return out
 
 
 def height_mm(

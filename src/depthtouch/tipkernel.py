@@ -23,6 +23,8 @@ import numpy as np
 N_OUT = 7
 _A, _B = 0.955, 1.3693  # OpenCV's 3x3 distance-transform weights (DIST_L2, mask 3)
 _INF = 1e30
+_DY8 = np.array([-1, -1, -1, 0, 0, 1, 1, 1])
+_DX8 = np.array([-1, 0, 1, -1, 1, -1, 0, 1])
 
 
 @numba.njit(cache=True, nogil=True)
@@ -144,8 +146,9 @@ def _smooth_heights(depth: np.ndarray, surf: np.ndarray, fact: np.ndarray, valid
 
 
 @numba.njit(cache=True, nogil=True)
-def _attach(near: np.ndarray, reach: int, high: np.ndarray, hands: np.ndarray, scale: int,
-            x0: int, y0: int) -> tuple[int, float, float, bool]:
+def _attach(near: np.ndarray, reach: int, depth: np.ndarray, high_lo: np.ndarray,
+            high_hi: np.ndarray, hands: np.ndarray, scale: int, x0: int, y0: int
+            ) -> tuple[int, float, float, bool]:
     """Hand pixels within ``reach`` px (chessboard) of a mask: count, mean x, y (window), and
     whether any belongs to an arm reaching in from the border (hand map level 2)."""
     h, w = near.shape
@@ -156,8 +159,11 @@ def _attach(near: np.ndarray, reach: int, high: np.ndarray, hands: np.ndarray, s
     border = False
     for y in range(h):
         for x in range(w):
-            if near[y, x] > reach or not high[y0 + y, x0 + x]:
+            if near[y, x] > reach:
                 continue
+            d = depth[y0 + y, x0 + x]
+            if d < high_lo[y0 + y, x0 + x] or d > high_hi[y0 + y, x0 + x]:
+                continue  # not above Tu
             cy, cx = (y0 + y) // scale, (x0 + x) // scale
             if cy >= sh or cx >= sw:
                 continue
@@ -375,7 +381,7 @@ def _candidate(part: np.ndarray, hs: np.ndarray, x: int, y: int, tt: float) -> b
 
 @numba.njit(cache=True, nogil=True)
 def frame_points(
-    depth: np.ndarray, high: np.ndarray, hands: np.ndarray, scale: int,
+    depth: np.ndarray, high_lo: np.ndarray, high_hi: np.ndarray, hands: np.ndarray, scale: int,
     surf: np.ndarray, fact: np.ndarray, tl: np.ndarray, valid: np.ndarray, to_mm: float,
     core: np.ndarray, open_pad: int, boxes: np.ndarray, masks: np.ndarray, mask_start: np.ndarray,
     r0: float, method: int, paper_ds: int, paper_tt: float,
@@ -410,7 +416,7 @@ def frame_points(
             continue
         # --- the hand: hand pixels next to the region (a flat object or noise has none) ----
         near = _chebyshev(reg, 3)
-        n_att, hx, hy, border = _attach(near, 2, high, hands, scale, x0, y0)
+        n_att, hx, hy, border = _attach(near, 2, depth, high_lo, high_hi, hands, scale, x0, y0)
         if n_att < 3:
             continue
         ex = np.empty(area, np.int64)
@@ -464,7 +470,8 @@ def frame_points(
                 continue
             phx, phy, pborder = hx, hy, border
             if n_parts > 1:
-                na, ax, ay, ab = _attach(_chebyshev(part, 3), 2, high, hands, scale, x0, y0)
+                na, ax, ay, ab = _attach(_chebyshev(part, 3), 2, depth, high_lo, high_hi, hands, scale,
+                                         x0, y0)
                 if na >= 3:
                     phx, phy, pborder = ax, ay, ab
             if method == 1:
@@ -597,3 +604,104 @@ def _grow(part: np.ndarray, own: np.ndarray, hs: np.ndarray, tl: np.ndarray, x0:
                 stack_y[top], stack_x[top] = yy, xx
                 top += 1
     return fx[:n], fy[:n]
+
+
+@numba.njit(cache=True, nogil=True)
+def hand_levels(depth: np.ndarray, high_lo: np.ndarray, high_hi: np.ndarray, valid: np.ndarray,
+                scale: int, px_mm2: float, min_hand_mm2: float) -> np.ndarray:
+    """Where hands are, at 1/scale resolution (uint8: 2 = part of something reaching in from
+    the image border, 1 = a raised part large enough to be a hand, 0 = no hand).
+
+    A coarse pixel is raised when any of the two middle rows and columns of its block is
+    above Tu (a bilinear sample between them; thin fingers stay connected), or when its
+    corner pixel has no depth over a usable surface pixel (an arm close to the camera is often
+    nearer than the camera measures). The raised map is dilated by one coarse pixel, labelled
+    (8-neighbours), and each part is given its level; the level map is dilated once more, so
+    that the coarse grid does not cut off the last pixels of an arm next to a fingertip.
+    ``px_mm2``: area of one full-resolution pixel on the surface (mm^2).
+    """
+    H, W = depth.shape
+    sh, sw = max(1, H // scale), max(1, W // scale)
+    raw = np.zeros((sh, sw), np.uint8)
+    c0 = scale // 2 - 1 if scale % 2 == 0 else scale // 2
+    c1 = scale // 2
+    for j in range(sh):
+        ya, yb = min(H - 1, scale * j + c0), min(H - 1, scale * j + c1)
+        for i in range(sw):
+            xa, xb = min(W - 1, scale * i + c0), min(W - 1, scale * i + c1)
+            d = depth[ya, xa]
+            hit = high_lo[ya, xa] <= d and d <= high_hi[ya, xa]
+            d = depth[ya, xb]
+            hit = hit or (high_lo[ya, xb] <= d and d <= high_hi[ya, xb])
+            d = depth[yb, xa]
+            hit = hit or (high_lo[yb, xa] <= d and d <= high_hi[yb, xa])
+            d = depth[yb, xb]
+            hit = hit or (high_lo[yb, xb] <= d and d <= high_hi[yb, xb])
+            if not hit:
+                y, x = scale * j, scale * i
+                hit = depth[y, x] == 0 and valid[y, x]
+            if hit:
+                raw[j, i] = 1
+    small = _dilate_max(raw)
+    labels = np.zeros((sh, sw), np.int32)
+    stack_y = np.empty(sh * sw, np.int64)
+    stack_x = np.empty(sh * sw, np.int64)
+    level_of = np.zeros(sh * sw + 1, np.uint8)
+    n_lab = 0
+    for j in range(sh):
+        for i in range(sw):
+            if not small[j, i] or labels[j, i]:
+                continue
+            n_lab += 1
+            labels[j, i] = n_lab
+            stack_y[0], stack_x[0] = j, i
+            top = 1
+            area = 0
+            border = False
+            while top > 0:
+                top -= 1
+                y, x = stack_y[top], stack_x[top]
+                area += 1
+                if y == 0 or x == 0 or y == sh - 1 or x == sw - 1:
+                    border = True
+                for k in range(8):
+                    yy = y + _DY8[k]
+                    xx = x + _DX8[k]
+                    if 0 <= yy < sh and 0 <= xx < sw and small[yy, xx] and not labels[yy, xx]:
+                        labels[yy, xx] = n_lab
+                        stack_y[top], stack_x[top] = yy, xx
+                        top += 1
+            if border:
+                level_of[n_lab] = 2
+            elif area * scale * scale * px_mm2 >= min_hand_mm2:
+                level_of[n_lab] = 1
+    lev = np.zeros((sh, sw), np.uint8)
+    for j in range(sh):
+        for i in range(sw):
+            lev[j, i] = level_of[labels[j, i]]
+    return _dilate_max(lev)
+
+
+@numba.njit(cache=True, nogil=True)
+def _dilate_max(a: np.ndarray) -> np.ndarray:
+    """3x3 maximum filter (pixels outside count as 0); a row pass then a column pass."""
+    h, w = a.shape
+    t = np.empty((h, w), np.uint8)
+    for y in range(h):
+        for x in range(w):
+            v = a[y, x]
+            if x > 0 and a[y, x - 1] > v:
+                v = a[y, x - 1]
+            if x < w - 1 and a[y, x + 1] > v:
+                v = a[y, x + 1]
+            t[y, x] = v
+    out = np.empty((h, w), np.uint8)
+    for y in range(h):
+        for x in range(w):
+            v = t[y, x]
+            if y > 0 and t[y - 1, x] > v:
+                v = t[y - 1, x]
+            if y < h - 1 and t[y + 1, x] > v:
+                v = t[y + 1, x]
+            out[y, x] = v
+    return out

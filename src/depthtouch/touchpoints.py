@@ -26,39 +26,39 @@ OpenCV calls.
 
 from __future__ import annotations
 
+import itertools
+
 import numpy as np
 
 from .config import TouchPointConfig
-from .regions import HAND_SCALE, BandBounds, Regions, hand_map
-from .tipkernel import frame_points
+from .regions import HAND_SCALE, BandBounds, Regions
+from .tipkernel import frame_points, hand_levels
 from .types import TouchPoints
 
 
 def find_touch_points(
     depth: np.ndarray,
-    high: np.ndarray,
     regions: Regions,
     bounds: BandBounds,
     config: TouchPointConfig,
 ) -> TouchPoints:
     """Touch points of the regions of one frame (pure; see the module doc).
 
-    depth: the (prefiltered) uint16 frame; high: uint8 mask of pixels above Tu (255 = in);
-    regions: from :func:`regions.find_regions`; bounds: the surface's band bounds.
+    depth: the (prefiltered) uint16 frame; regions: from :func:`regions.find_regions`;
+    bounds: the surface's band bounds.
     """
     if len(regions) == 0:
         return TouchPoints.empty()
-    hands = hand_map(high, depth, bounds)
+    hands = hand_map(depth, bounds)
     boxes = np.ascontiguousarray(regions.bbox_xywh, dtype=np.int64)
-    sizes = boxes[:, 2] * boxes[:, 3]
-    start = np.zeros(len(regions), np.int64)
-    np.cumsum(sizes[:-1], out=start[1:])
+    sizes = [m.size for m in regions.masks]
+    start = np.array([0, *itertools.accumulate(sizes[:-1])], np.int64)
     masks = np.concatenate([m.ravel() for m in regions.masks]).astype(np.uint8, copy=False)
     core = regions.band if regions.band is not None else _core_of(regions, depth.shape)
     pad = bounds.open_px // 2 if regions.band is not None else 0
     out = frame_points(
-        depth, high, hands, HAND_SCALE, bounds.surface_mm, bounds.factor, bounds.tl_mm,
-        bounds.valid, float(bounds.to_mm), core, pad, boxes, masks, start,
+        depth, bounds.high_lo, bounds.high_hi, hands, HAND_SCALE, bounds.surface_mm,
+        bounds.factor, bounds.tl_mm, bounds.valid, float(bounds.to_mm), core, pad, boxes, masks, start,
         float(config.tip_radius_mm / bounds.mm_per_px), 1 if config.method == "paper" else 0,
         int(config.paper_ds_px), float(config.paper_tt_mm),
     )
@@ -74,3 +74,16 @@ def _core_of(regions: Regions, shape: tuple[int, ...]) -> np.ndarray:
     for (x, y, w, h), m in zip(regions.bbox_xywh.tolist(), regions.masks):
         core[y:y + h, x:x + w] |= m * np.uint8(255)
     return core
+
+
+def hand_map(depth: np.ndarray, bounds: BandBounds) -> np.ndarray:
+    """Where hands are, at 1/4 resolution (uint8: 2 = connected to the image border, 1 = large
+    enough to be a hand, 0 = no hand); see :func:`tipkernel.hand_levels`.
+
+    People reach into the view from outside it, so a hand is normally attached, through its arm,
+    to the border; an object standing on the surface, tall or not, is not. Where the view is so
+    wide that a whole arm is in it, a raised part of at least ``min_hand_mm2`` counts too (a tall
+    object that large counts until the surface absorbs it, about a second after it was put down).
+    """
+    return hand_levels(depth, bounds.high_lo, bounds.high_hi, bounds.valid, HAND_SCALE,
+                       float(bounds.mm_per_px) ** 2, float(bounds.min_hand_mm2))

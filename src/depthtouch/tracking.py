@@ -52,6 +52,11 @@ def _assign(cost: np.ndarray, rows: np.ndarray, cols: np.ndarray) -> dict[int, i
     if rows.size == 0 or cols.size == 0:
         return {}
     sub = cost[np.ix_(rows, cols)]
+    best = sub.argmin(axis=1).tolist()
+    if len(set(best)) == len(best):
+        # every track's nearest point is its own: that is the optimum (no assignment can cost
+        # less than each track's own minimum), found without the solver
+        return {int(rows[a]): int(cols[b]) for a, b in enumerate(best) if sub[a, b] < _BIG}
     r, c = linear_sum_assignment(sub)
     ok = sub[r, c] < _BIG
     return {int(rows[a]): int(cols[b]) for a, b in zip(r[ok], c[ok], strict=True)}
