@@ -155,13 +155,19 @@ def _analysis(rows: list) -> list[str]:
             "",
         ]
     out += [
-        "- Without touches the cost is the 3x3 median, one stripe of the surface adaptation, the "
-        "bump check and the two `inRange` calls.",
-        "- Per touch the time is in `touchpoints.py`: some 40 small OpenCV/numpy calls on a window "
-        "of ~40x45 pixels (smoothed heights, growth into the tip cap, connected pixels, the hand "
-        "window, the projections), each a few microseconds: Python call overhead dominates, not "
-        "pixels. Ways on: one compiled kernel per region (numba works with numpy 2.4 here), or "
-        "the per-region steps done for all regions of a frame in one batch.",
+        "- Without touches the cost is the 3x3 median (OpenCV), one stripe of the surface "
+        "adaptation and, every other frame, the 1/8 bump check (compiled), and the band with "
+        "its erosion (one compiled pass that skips rows without band pixels).",
+        "- With touches: the contours of the band (OpenCV) and, per region, its filled mask; the "
+        "1/4 resolution hand map and every region's fingertip (`tipkernel.py`, one compiled "
+        "call per frame, a few tens of microseconds for five touches); tracking, the path "
+        "filter and the events are Python and numpy on a handful of touches (~40 us per frame "
+        "plus ~20 us per touch).",
+        "- Before the compiled kernels (numpy/OpenCV array calls only; the same points, see "
+        "`tests/reference_touchpoints.py`) the 5-touch frame took 2.5-3.2 ms: some 40 calls of "
+        "a few microseconds per region, Python overhead rather than pixels.",
+        "- The kernels are compiled by numba on the first run (~15-30 s, cached on disk; "
+        "`Pipeline()` compiles or loads them before the first frame).",
         "- All of it stays far under a camera's frame interval (33 ms at 30 fps, 11 ms at 90 fps) "
         "and the paper's 20 ms, up to 10 touches at 1280x720.",
         "- The machine is a shared 2-core VM: medians move by up to ±30 % between runs, and the p95 "

@@ -248,3 +248,13 @@ def _blocks(depth: np.ndarray, block: int, to_mm: float, block_valid: np.ndarray
                 continue
             out[j, i] = np.float32((np.float64(a) + b_ + c_ + d) * 0.25 * to_mm)
     return out
+
+
+def warm_up() -> None:
+    """Compile (or load from cache) this module's kernels (see :func:`tipkernel.warm_up`)."""
+    z16 = np.zeros((8, 8), np.uint16)
+    f = np.zeros((8, 8), np.float32)
+    b = np.ones((8, 8), np.bool_)
+    _blocks(z16, 4, 1.0, b)
+    _stripe_update(z16, f, f + 1, f + 1, b, f.copy(), f.copy(), f + 1, ~b, 1.0, 0.0, 0.5, False,
+                   -1.0)

@@ -31,6 +31,21 @@ from .tracking import Tracker, TrackUpdate
 from .types import Frame, TouchEvent, TouchPoints
 
 log = logging.getLogger(__name__)
+_warm = False
+
+
+def _warm_up() -> None:
+    """Compile the per-frame kernels once per process, before the first frame (a camera
+    stream must not stall seconds on its first touch)."""
+    global _warm
+    if _warm:
+        return
+    from . import adapt, regions, tipkernel
+
+    tipkernel.warm_up()
+    regions.warm_up()
+    adapt.warm_up()
+    _warm = True
 
 
 class ScreenMapping(Protocol):
@@ -73,6 +88,7 @@ class Pipeline:
         strict: bool = False,
     ) -> None:
         self.config = (config or PipelineConfig()).validate()
+        _warm_up()
         self.strict = strict
         self.calibration = calibration
         self._surface_frames = surface_frames

@@ -265,7 +265,7 @@ def _contour_regions(contours: Sequence[np.ndarray], shape: tuple[int, ...], min
             continue
         x0, y0 = max(0, x - pad), max(0, y - pad)
         x1, y1 = min(W, x + w + pad), min(H, y + h + pad)
-        m = np.zeros((y1 - y0, x1 - x0), np.uint8)
+        m: np.ndarray = np.zeros((y1 - y0, x1 - x0), np.uint8)
         cv2.drawContours(m, [c], -1, 1, thickness=cv2.FILLED, offset=(-x0, -y0))
         if pad:
             m = cv2.dilate(m, _kernel(k))
@@ -298,3 +298,9 @@ def height_mm(
     bad = (d == 0) | ~bounds.valid[ys, xs]
     h_mm[bad] = np.nan
     return h_mm
+
+
+def warm_up() -> None:
+    """Compile (or load from cache) this module's kernel (see :func:`tipkernel.warm_up`)."""
+    z = np.zeros((8, 8), np.uint16)
+    _band_core(z, z, z, 1)
