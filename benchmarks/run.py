@@ -166,7 +166,8 @@ def _analysis(rows: list) -> list[str]:
         "adaptation and, every other frame, the 1/8 bump check (compiled), and the band with "
         "its erosion (one compiled pass that skips rows without band pixels).",
         "- With touches: the contours of the band (OpenCV) and, per region, its filled mask; the "
-        "1/4 resolution hand map and every region's fingertip (`tipkernel.py`, one compiled "
+        "1/4 resolution hand map (`handmap.py`) and every region's fingertip (`tipkernel.py`, "
+        "one compiled "
         "call per frame, a few tens of microseconds for five touches); tracking, the path "
         "filter and the events are Python and numpy on a handful of touches (~40 us per frame "
         "plus ~20 us per touch).",

@@ -40,9 +40,10 @@ def _warm_up() -> None:
     global _warm
     if _warm:
         return
-    from . import adapt, regions, tipkernel
+    from . import adapt, handmap, regions, tipkernel
 
     tipkernel.warm_up()
+    handmap.warm_up()
     regions.warm_up()
     adapt.warm_up()
     _warm = True

@@ -23,8 +23,6 @@ import numpy as np
 N_OUT = 7
 _A, _B = 0.955, 1.3693  # OpenCV's 3x3 distance-transform weights (DIST_L2, mask 3)
 _INF = 1e30
-_DY8 = np.array([-1, -1, -1, 0, 0, 1, 1, 1])
-_DX8 = np.array([-1, 0, 1, -1, 1, -1, 0, 1])
 
 
 @numba.njit(cache=True, nogil=True)
@@ -606,107 +604,6 @@ def _grow(part: np.ndarray, own: np.ndarray, hs: np.ndarray, tl: np.ndarray, x0:
     return fx[:n], fy[:n]
 
 
-@numba.njit(cache=True, nogil=True)
-def hand_levels(depth: np.ndarray, high_lo: np.ndarray, high_hi: np.ndarray, valid: np.ndarray,
-                scale: int, px_mm2: float, min_hand_mm2: float) -> np.ndarray:
-    """Where hands are, at 1/scale resolution (uint8: 2 = part of something reaching in from
-    the image border, 1 = a raised part large enough to be a hand, 0 = no hand).
-
-    A coarse pixel is raised when any of the two middle rows and columns of its block is
-    above Tu (a bilinear sample between them; thin fingers stay connected), or when its
-    corner pixel has no depth over a usable surface pixel (an arm close to the camera is often
-    nearer than the camera measures). The raised map is dilated by one coarse pixel, labelled
-    (8-neighbours), and each part is given its level; the level map is dilated once more, so
-    that the coarse grid does not cut off the last pixels of an arm next to a fingertip.
-    ``px_mm2``: area of one full-resolution pixel on the surface (mm^2).
-    """
-    H, W = depth.shape
-    sh, sw = max(1, H // scale), max(1, W // scale)
-    raw = np.zeros((sh, sw), np.uint8)
-    c0 = scale // 2 - 1 if scale % 2 == 0 else scale // 2
-    c1 = scale // 2
-    for j in range(sh):
-        ya, yb = min(H - 1, scale * j + c0), min(H - 1, scale * j + c1)
-        for i in range(sw):
-            xa, xb = min(W - 1, scale * i + c0), min(W - 1, scale * i + c1)
-            d = depth[ya, xa]
-            hit = high_lo[ya, xa] <= d and d <= high_hi[ya, xa]
-            d = depth[ya, xb]
-            hit = hit or (high_lo[ya, xb] <= d and d <= high_hi[ya, xb])
-            d = depth[yb, xa]
-            hit = hit or (high_lo[yb, xa] <= d and d <= high_hi[yb, xa])
-            d = depth[yb, xb]
-            hit = hit or (high_lo[yb, xb] <= d and d <= high_hi[yb, xb])
-            if not hit:
-                y, x = scale * j, scale * i
-                hit = depth[y, x] == 0 and valid[y, x]
-            if hit:
-                raw[j, i] = 1
-    small = _dilate_max(raw)
-    labels = np.zeros((sh, sw), np.int32)
-    stack_y = np.empty(sh * sw, np.int64)
-    stack_x = np.empty(sh * sw, np.int64)
-    level_of = np.zeros(sh * sw + 1, np.uint8)
-    n_lab = 0
-    for j in range(sh):
-        for i in range(sw):
-            if not small[j, i] or labels[j, i]:
-                continue
-            n_lab += 1
-            labels[j, i] = n_lab
-            stack_y[0], stack_x[0] = j, i
-            top = 1
-            area = 0
-            border = False
-            while top > 0:
-                top -= 1
-                y, x = stack_y[top], stack_x[top]
-                area += 1
-                if y == 0 or x == 0 or y == sh - 1 or x == sw - 1:
-                    border = True
-                for k in range(8):
-                    yy = y + _DY8[k]
-                    xx = x + _DX8[k]
-                    if 0 <= yy < sh and 0 <= xx < sw and small[yy, xx] and not labels[yy, xx]:
-                        labels[yy, xx] = n_lab
-                        stack_y[top], stack_x[top] = yy, xx
-                        top += 1
-            if border:
-                level_of[n_lab] = 2
-            elif area * scale * scale * px_mm2 >= min_hand_mm2:
-                level_of[n_lab] = 1
-    lev = np.zeros((sh, sw), np.uint8)
-    for j in range(sh):
-        for i in range(sw):
-            lev[j, i] = level_of[labels[j, i]]
-    return _dilate_max(lev)
-
-
-@numba.njit(cache=True, nogil=True)
-def _dilate_max(a: np.ndarray) -> np.ndarray:
-    """3x3 maximum filter (pixels outside count as 0); a row pass then a column pass."""
-    h, w = a.shape
-    t = np.empty((h, w), np.uint8)
-    for y in range(h):
-        for x in range(w):
-            v = a[y, x]
-            if x > 0 and a[y, x - 1] > v:
-                v = a[y, x - 1]
-            if x < w - 1 and a[y, x + 1] > v:
-                v = a[y, x + 1]
-            t[y, x] = v
-    out = np.empty((h, w), np.uint8)
-    for y in range(h):
-        for x in range(w):
-            v = t[y, x]
-            if y > 0 and t[y - 1, x] > v:
-                v = t[y - 1, x]
-            if y < h - 1 and t[y + 1, x] > v:
-                v = t[y + 1, x]
-            out[y, x] = v
-    return out
-
-
 def warm_up() -> None:
     """Compile (or load from the on-disk cache) every kernel on a tiny frame, so that the
     first real frame does not wait for the compiler (seconds on a first run)."""
@@ -721,7 +618,8 @@ def warm_up() -> None:
     boxes = np.array([[10, 10, 10, 10]], np.int64)
     masks = np.ones(100, np.uint8)
     start = np.zeros(1, np.int64)
-    hands = hand_levels(depth, lo, hi, valid, 4, 1.0, 100.0)
+    hands = np.zeros((h // 4, w // 4), np.uint8)
+    hands[2:5, 2:5] = 2
     for method in (0, 1):
         frame_points(depth, lo, hi, hands, 4, f32 * 1000, f32, f32 * 4, valid, 1.0, core, 1,
                      boxes, masks, start, 3.0, method, 6, 18.0)

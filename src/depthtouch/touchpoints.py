@@ -31,8 +31,9 @@ import itertools
 import numpy as np
 
 from .config import TouchPointConfig
+from .handmap import hand_map
 from .regions import HAND_SCALE, BandBounds, Regions
-from .tipkernel import frame_points, hand_levels
+from .tipkernel import frame_points
 from .types import TouchPoints
 
 
@@ -74,16 +75,3 @@ def _core_of(regions: Regions, shape: tuple[int, ...]) -> np.ndarray:
     for (x, y, w, h), m in zip(regions.bbox_xywh.tolist(), regions.masks):
         core[y:y + h, x:x + w] |= m * np.uint8(255)
     return core
-
-
-def hand_map(depth: np.ndarray, bounds: BandBounds) -> np.ndarray:
-    """Where hands are, at 1/4 resolution (uint8: 2 = connected to the image border, 1 = large
-    enough to be a hand, 0 = no hand); see :func:`tipkernel.hand_levels`.
-
-    People reach into the view from outside it, so a hand is normally attached, through its arm,
-    to the border; an object standing on the surface, tall or not, is not. Where the view is so
-    wide that a whole arm is in it, a raised part of at least ``min_hand_mm2`` counts too (a tall
-    object that large counts until the surface absorbs it, about a second after it was put down).
-    """
-    return hand_levels(depth, bounds.high_lo, bounds.high_hi, bounds.valid, HAND_SCALE,
-                       float(bounds.mm_per_px) ** 2, float(bounds.min_hand_mm2))
