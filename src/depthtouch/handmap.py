@@ -28,26 +28,30 @@ def hand_map(depth: np.ndarray, bounds: BandBounds) -> np.ndarray:
     wide that a whole arm is in it, a raised part of at least ``min_hand_mm2`` counts too (a tall
     object that large counts until the surface absorbs it, about a second after it was put down).
     """
-    return hand_levels(depth, bounds.high_lo, bounds.high_hi, bounds.valid, HAND_SCALE,
+    if bounds.hand_lo is None or bounds.hand_hi is None or bounds.hand_valid is None:
+        raise ValueError("hand_map: bounds without hand samples (made by regions.band_bounds)")
+    return hand_levels(depth, bounds.hand_lo, bounds.hand_hi, bounds.hand_valid, HAND_SCALE,
                        float(bounds.mm_per_px) ** 2, float(bounds.min_hand_mm2))
 
 
 @numba.njit(cache=True, nogil=True)
-def hand_levels(depth: np.ndarray, high_lo: np.ndarray, high_hi: np.ndarray, valid: np.ndarray,
-                scale: int, px_mm2: float, min_hand_mm2: float) -> np.ndarray:
+def hand_levels(depth: np.ndarray, hand_lo: np.ndarray, hand_hi: np.ndarray,
+                hand_valid: np.ndarray, scale: int, px_mm2: float, min_hand_mm2: float
+                ) -> np.ndarray:
     """Where hands are, at 1/scale resolution (uint8: 2 = part of something reaching in from
     the image border, 1 = a raised part large enough to be a hand, 0 = no hand).
 
     A coarse pixel is raised when any of the two middle rows and columns of its block is
-    above Tu (a bilinear sample between them; thin fingers stay connected), or when its
-    corner pixel has no depth over a usable surface pixel (an arm close to the camera is often
-    nearer than the camera measures). The raised map is dilated by one coarse pixel, labelled
-    (8-neighbours), and each part is given its level; the level map is dilated once more, so
-    that the coarse grid does not cut off the last pixels of an arm next to a fingertip.
-    ``px_mm2``: area of one full-resolution pixel on the surface (mm^2).
+    above Tu (a bilinear sample between them; thin fingers stay connected; ``hand_lo`` and
+    ``hand_hi``: the depth bounds of being above Tu at those 4 pixels, (h/s, w/s, 4)), or when
+    its corner pixel has no depth over a usable surface pixel (``hand_valid``; an arm close to
+    the camera is often nearer than the camera measures). The raised map is dilated by one
+    coarse pixel, labelled (8-neighbours), and each part is given its level; the level map is
+    dilated once more, so that the coarse grid does not cut off the last pixels of an arm next
+    to a fingertip. ``px_mm2``: area of one full-resolution pixel on the surface (mm^2).
     """
     H, W = depth.shape
-    sh, sw = max(1, H // scale), max(1, W // scale)
+    sh, sw = hand_lo.shape[0], hand_lo.shape[1]
     raw = np.zeros((sh, sw), np.uint8)
     c0 = scale // 2 - 1 if scale % 2 == 0 else scale // 2
     c1 = scale // 2
@@ -55,17 +59,13 @@ def hand_levels(depth: np.ndarray, high_lo: np.ndarray, high_hi: np.ndarray, val
         ya, yb = min(H - 1, scale * j + c0), min(H - 1, scale * j + c1)
         for i in range(sw):
             xa, xb = min(W - 1, scale * i + c0), min(W - 1, scale * i + c1)
-            d = depth[ya, xa]
-            hit = high_lo[ya, xa] <= d and d <= high_hi[ya, xa]
-            d = depth[ya, xb]
-            hit = hit or (high_lo[ya, xb] <= d and d <= high_hi[ya, xb])
-            d = depth[yb, xa]
-            hit = hit or (high_lo[yb, xa] <= d and d <= high_hi[yb, xa])
-            d = depth[yb, xb]
-            hit = hit or (high_lo[yb, xb] <= d and d <= high_hi[yb, xb])
+            d0, d1, d2, d3 = depth[ya, xa], depth[ya, xb], depth[yb, xa], depth[yb, xb]
+            hit = ((hand_lo[j, i, 0] <= d0 and d0 <= hand_hi[j, i, 0])
+                   or (hand_lo[j, i, 1] <= d1 and d1 <= hand_hi[j, i, 1])
+                   or (hand_lo[j, i, 2] <= d2 and d2 <= hand_hi[j, i, 2])
+                   or (hand_lo[j, i, 3] <= d3 and d3 <= hand_hi[j, i, 3]))
             if not hit:
-                y, x = scale * j, scale * i
-                hit = depth[y, x] == 0 and valid[y, x]
+                hit = depth[scale * j, scale * i] == 0 and hand_valid[j, i]
             if hit:
                 raw[j, i] = 1
     small = _dilate_max(raw)
@@ -137,4 +137,5 @@ def warm_up() -> None:
     """Compile (or load from the on-disk cache) this module's kernels (see
     :func:`tipkernel.warm_up`)."""
     z = np.zeros((8, 8), np.uint16)
-    hand_levels(z, z, z, np.ones((8, 8), np.bool_), HAND_SCALE, 1.0, 100.0)
+    zs = np.zeros((2, 2, 4), np.uint16)
+    hand_levels(z, zs, zs, np.ones((2, 2), np.bool_), HAND_SCALE, 1.0, 100.0)

@@ -49,6 +49,11 @@ class BandBounds:
     valid_u8: np.ndarray | None = None
     min_hand_mm2: float = 6000.0
     small_valid: np.ndarray | None = None  # valid_u8 at the hand map's 1/4 resolution
+    # the hand map's samples (see handmap.hand_levels): high_lo / high_hi at the 4 middle
+    # pixels of each 1/4 block, (h/4, w/4, 4), and whether each block's corner pixel is usable
+    hand_lo: np.ndarray | None = None
+    hand_hi: np.ndarray | None = None
+    hand_valid: np.ndarray | None = None
 
 
 def _depth_bounds(
@@ -97,11 +102,29 @@ def band_bounds(surface: SurfaceModel, config: RegionConfig, tip_radius_mm: floa
         valid=surface.valid, to_mm=to_mm, mm_per_px=mm_px, min_area_px=min_area,
         open_px=open_px, tu_mm=cfg.tu_mm, hand_max_mm=cfg.hand_max_mm,
         valid_u8=surface.valid.astype(np.uint8) * np.uint8(255), min_hand_mm2=cfg.min_hand_mm2,
+        hand_lo=_hand_samples(hl), hand_hi=_hand_samples(hh),
+        hand_valid=np.ascontiguousarray(surface.valid[::HAND_SCALE, ::HAND_SCALE][
+            :max(1, surface.valid.shape[0] // HAND_SCALE), :max(1, surface.valid.shape[1] // HAND_SCALE)]),
         small_valid=cv2.resize(surface.valid.astype(np.uint8) * np.uint8(255),
                                (max(1, surface.valid.shape[1] // HAND_SCALE),
                                 max(1, surface.valid.shape[0] // HAND_SCALE)),
                                interpolation=cv2.INTER_NEAREST),
     )
+
+
+def _hand_samples(a: np.ndarray, j0: int = 0, j1: int | None = None) -> np.ndarray:
+    """``a`` at the 4 middle pixels (rows and columns s/2-1 and s/2) of each 1/s block of the
+    block rows j0:j1, as (rows, w/s, 4)."""
+    s = HAND_SCALE
+    H, W = a.shape
+    sh, sw = max(1, H // s), max(1, W // s)
+    j1 = sh if j1 is None else j1
+    jj, ii = np.arange(j0, j1), np.arange(sw)
+    c0, c1 = s // 2 - 1, s // 2
+    out = np.empty((j1 - j0, sw, 4), a.dtype)
+    for k, (cy, cx) in enumerate(((c0, c0), (c0, c1), (c1, c0), (c1, c1))):
+        out[:, :, k] = a[np.ix_(np.minimum(H - 1, s * jj + cy), np.minimum(W - 1, s * ii + cx))]
+    return out
 
 
 def refresh_rows(bounds: BandBounds, y0: int, y1: int) -> None:
@@ -113,6 +136,12 @@ def refresh_rows(bounds: BandBounds, y0: int, y1: int) -> None:
     )
     bounds.band_lo[rows], bounds.band_hi[rows] = bl, bh
     bounds.high_lo[rows], bounds.high_hi[rows] = hl, hh
+    if bounds.hand_lo is not None and bounds.hand_hi is not None:
+        j0 = max(0, (y0 - HAND_SCALE) // HAND_SCALE)
+        j1 = min(bounds.hand_lo.shape[0], y1 // HAND_SCALE + 1)
+        if j1 > j0:
+            bounds.hand_lo[j0:j1] = _hand_samples(bounds.high_lo, j0, j1)
+            bounds.hand_hi[j0:j1] = _hand_samples(bounds.high_hi, j0, j1)
 
 
 def band_mask(depth: np.ndarray, bounds: BandBounds) -> np.ndarray:
