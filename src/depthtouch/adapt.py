@@ -99,16 +99,14 @@ class SurfaceAdapter:
         if ref is None or last_t is None:
             self._ref, self._ref_t = ds.copy(), t
             return None
-        ok = np.isfinite(ds) & np.isfinite(ref) & np.isfinite(ss)
-        n_ok = int(np.count_nonzero(ok))
+        alpha = min(1.0, max(0.0, t - last_t) / 2.0)
+        n_ok, n_sudden, n_surface = _compare_blocks(ds, ref, ss, thr, alpha)  # ref follows ds
+        self._ref_t = t
         if n_ok == 0:
             return None
-        sudden = np.count_nonzero(np.abs(ds - ref)[ok] > thr[ok]) / n_ok
-        vs_surface = np.count_nonzero(np.abs(ds - ss)[ok] > thr[ok]) / n_ok
+        sudden = n_sudden / n_ok
+        vs_surface = n_surface / n_ok
         self.changed_share = vs_surface
-        alpha = np.float32(min(1.0, max(0.0, t - last_t) / 2.0))
-        self._ref = np.where(np.isfinite(ref), ref + alpha * (ds - ref), ds)
-        self._ref_t = t
         cfg = self.config
         if sudden >= cfg.bump_fraction and self._bump_since is None:
             self._bump_since = t
@@ -119,6 +117,7 @@ class SurfaceAdapter:
             return None
         # still: few samples jump by more than twice the threshold from one frame to the next
         # (structured light flickers between quantisation steps; a person moves far more)
+        ok = np.isfinite(ds) & np.isfinite(ss)
         both = ok & np.isfinite(prev) if prev is not None else None
         still = both is not None and float(
             np.mean(np.abs(ds - prev)[both] > 2 * thr[both])
@@ -256,5 +255,34 @@ def warm_up() -> None:
     f = np.zeros((8, 8), np.float32)
     b = np.ones((8, 8), np.bool_)
     _blocks(z16, 4, 1.0, b)
+    _compare_blocks(f, f.copy(), f, f, 0.5)
     _stripe_update(z16, f, f + 1, f + 1, b, f.copy(), f.copy(), f + 1, ~b, 1.0, 0.0, 0.5, False,
                    -1.0)
+
+
+@numba.njit(cache=True, nogil=True)
+def _compare_blocks(ds: np.ndarray, ref: np.ndarray, ss: np.ndarray, thr: np.ndarray,
+                    alpha: float) -> tuple[int, int, int]:
+    """One pass of :meth:`SurfaceAdapter.check` over the 1/8 view: the samples known in the
+    frame, the reference and the surface; how many of them moved away from the reference and
+    from the surface by more than ``thr``. The reference then follows the frame by ``alpha``
+    (in place; an unknown reference sample takes the frame's)."""
+    h, w = ds.shape
+    n_ok = 0
+    n_sudden = 0
+    n_surface = 0
+    a = np.float32(alpha)
+    for y in range(h):
+        for x in range(w):
+            d, r, s = ds[y, x], ref[y, x], ss[y, x]
+            if np.isfinite(d) and np.isfinite(r) and np.isfinite(s):
+                n_ok += 1
+                if abs(d - r) > thr[y, x]:
+                    n_sudden += 1
+                if abs(d - s) > thr[y, x]:
+                    n_surface += 1
+            if np.isfinite(r):
+                ref[y, x] = r + a * (d - r)
+            else:
+                ref[y, x] = d
+    return n_ok, n_sudden, n_surface
