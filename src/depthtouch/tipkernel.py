@@ -238,16 +238,26 @@ def _split(lat: np.ndarray, s: np.ndarray, r0: float) -> np.ndarray:
 
 
 @numba.njit(cache=True, nogil=True)
+def _project(xs: np.ndarray, ys: np.ndarray, hx: float, hy: float, ux: float, uy: float
+             ) -> tuple[np.ndarray, np.ndarray]:
+    """(s, lat): pixels along the unit direction (ux, uy) from the hand at (hx, hy), and
+    across it."""
+    n = xs.shape[0]
+    s = np.empty(n)
+    lat = np.empty(n)
+    for i in range(n):
+        px, py = xs[i] - hx, ys[i] - hy
+        s[i] = px * ux + py * uy
+        lat[i] = py * ux - px * uy
+    return s, lat
+
+
+@numba.njit(cache=True, nogil=True)
 def _extremity(finger_x: np.ndarray, finger_y: np.ndarray, hs: np.ndarray, hx: float, hy: float,
                ux: float, uy: float, r0: float) -> tuple[float, float, float]:
     """Contact point (window px) and tip height of one finger's pixels."""
     n = finger_x.shape[0]
-    s = np.empty(n)
-    lat = np.empty(n)
-    for i in range(n):
-        px, py = finger_x[i] - hx, finger_y[i] - hy
-        s[i] = px * ux + py * uy
-        lat[i] = py * ux - px * uy
+    s, lat = _project(finger_x, finger_y, hx, hy, ux, uy)
     # front: the farthest 1-px slice at least half a tip radius wide
     s0 = s.min()
     nb = int(s.max() - s0) + 1
@@ -431,12 +441,7 @@ def frame_points(
         if norm < 1e-6:
             continue
         ux, uy = dx / norm, dy / norm
-        s = np.empty(area)
-        lat = np.empty(area)
-        for j in range(area):
-            px, py = ex[j] - hx, ey[j] - hy
-            s[j] = px * ux + py * uy
-            lat[j] = py * ux - px * uy
+        s, lat = _project(ex, ey, hx, hy, ux, uy)
         along = s.max() - s.min() + 1.0
         across = lat.max() - lat.min() + 1.0
         # a thin strip along the side of something raised: an edge, not a finger
