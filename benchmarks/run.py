@@ -28,6 +28,8 @@ from synth import Finger, render_heights  # noqa: E402
 RESOLUTIONS = [(512, 424), (640, 480), (848, 480), (1280, 720)]
 TOUCHES = [0, 2, 5, 10]
 WARMUP_FRAMES = 100
+ROUNDS = 6  # each case is timed in this many blocks, the cases taking turns
+BLOCK_WARMUP = 5  # untimed frames at the start of each block
 STAGES = ["prefilter_surface_update", "regions", "touchpoints", "tracking", "filter_events", "total"]
 
 
@@ -63,30 +65,52 @@ def make_frames(w: int, h: int, n_touch: int, n_distinct: int, seed: int = 0) ->
     return empty + touch, K
 
 
+class BenchCase:
+    """One case (resolution, touches): a pipeline with its surface learned and warmed up,
+    timed in blocks of frames so that the cases can take turns (see :func:`main`)."""
+
+    def __init__(self, w: int, h: int, n_touch: int) -> None:
+        self.frames, self.K = make_frames(w, h, n_touch, n_distinct=30)
+        self.pipe = Pipeline(surface_frames=45)
+        self.t = 0.0
+        self.i = 0
+        for d in self.frames[:45]:
+            self._step(d)
+        self.touch = self.frames[45:]
+        # warm-up (not timed): the first frames with touches allocate the tracks and the caches
+        # settle; a case measured cold runs ~20 % slower for its first few hundred frames
+        self.block(WARMUP_FRAMES, timed=False)
+        self.samples: dict[str, list[float]] = {s: [] for s in STAGES}
+        self.found: list[int] = []
+
+    def _step(self, d: np.ndarray) -> None:
+        self.pipe.process(Frame(d, self.t, self.i, 0.001, self.K))
+        self.t += 1 / 30
+        self.i += 1
+
+    def block(self, n: int, timed: bool = True) -> None:
+        """Process n frames (after a few untimed ones that bring the caches back)."""
+        for _ in range(BLOCK_WARMUP if timed else 0):
+            self._step(self.touch[self.i % len(self.touch)])
+        for _ in range(n):
+            self._step(self.touch[self.i % len(self.touch)])
+            if timed:
+                self.found.append(len(self.pipe.last_points))
+                for s in STAGES:
+                    self.samples[s].append(self.pipe.last_timing_ms[s])
+
+    def result(self) -> dict[str, tuple[float, float]]:
+        res = {s: (float(np.median(v)), float(np.percentile(v, 95)))
+               for s, v in self.samples.items()}
+        res["found"] = (float(np.median(self.found)), 0.0)
+        return res
+
+
 def bench_case(w: int, h: int, n_touch: int, n_frames: int) -> dict[str, tuple[float, float]]:
-    frames, K = make_frames(w, h, n_touch, n_distinct=30)
-    p = Pipeline(surface_frames=45)
-    t = 0.0
-    for i, d in enumerate(frames[:45]):
-        p.process(Frame(d, t, i, 0.001, K))
-        t += 1 / 30
-    touch = frames[45:]
-    # warm-up (not timed): the first frames with touches allocate the tracks and the caches
-    # settle; a case measured cold runs ~20 % slower for its whole first few hundred frames
-    for i in range(WARMUP_FRAMES):
-        p.process(Frame(touch[i % len(touch)], t, 45 + i, 0.001, K))
-        t += 1 / 30
-    samples: dict[str, list[float]] = {s: [] for s in STAGES}
-    found = []
-    for i in range(n_frames):
-        p.process(Frame(touch[i % len(touch)], t, 45 + WARMUP_FRAMES + i, 0.001, K))
-        t += 1 / 30
-        found.append(len(p.last_points))
-        for s in STAGES:
-            samples[s].append(p.last_timing_ms[s])
-    res = {s: (float(np.median(v)), float(np.percentile(v, 95))) for s, v in samples.items()}
-    res["found"] = (float(np.median(found)), 0.0)
-    return res
+    """Time one case on its own (n_frames frames after the warm-up)."""
+    case = BenchCase(w, h, n_touch)
+    case.block(n_frames)
+    return case.result()
 
 
 def machine() -> str:
@@ -112,13 +136,21 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--quick", action="store_true", help="640x480 only")
     a = ap.parse_args(argv)
     cv2.setNumThreads(1)
+    keys = [(w, h, n) for w, h in ([(640, 480)] if a.quick else RESOLUTIONS) for n in TOUCHES]
+    cases = [BenchCase(*k) for k in keys]
+    # The cases take turns, a block of frames each, so that a slow spell of the machine (a
+    # shared VM: tens of seconds at times) is spread over all cases instead of one case's whole
+    # measurement.
+    per = max(1, a.frames // ROUNDS)
+    for _ in range(ROUNDS):
+        for case in cases:
+            case.block(per)
     rows = []
-    for w, h in ([(640, 480)] if a.quick else RESOLUTIONS):
-        for n in TOUCHES:
-            r = bench_case(w, h, n, a.frames)
-            rows.append((w, h, n, r))
-            print(f"{w}x{h} {n:2d} touches: total median {r['total'][0]:.3f} ms, "
-                  f"p95 {r['total'][1]:.3f} ms (found {r['found'][0]:.0f})", flush=True)
+    for (w, h, n), case in zip(keys, cases):
+        r = case.result()
+        rows.append((w, h, n, r))
+        print(f"{w}x{h} {n:2d} touches: total median {r['total'][0]:.3f} ms, "
+              f"p95 {r['total'][1]:.3f} ms (found {r['found'][0]:.0f})", flush=True)
     lines = [
         "# Benchmarks",
         "",
@@ -127,7 +159,9 @@ def main(argv: list[str] | None = None) -> int:
         f"The per-frame path (3x3 median and surface adaptation → band masks + regions → touch "
         f"points → tracking → filter and events), timed inside `Pipeline.process` over "
         f"{a.frames} frames per case after the "
-        f"surface was learned and {WARMUP_FRAMES} untimed warm-up frames, OpenCV on one thread. "
+        f"surface was learned and {WARMUP_FRAMES} untimed warm-up frames, in {ROUNDS} blocks per "
+        f"case with the cases taking turns ({BLOCK_WARMUP} untimed frames before each block), "
+        "OpenCV on one thread. "
         "Synthetic frames: a plane at 1 m seen from "
         "above, 1.5 mm noise, 1 % missing pixels, fingers with hands drifting over it (see "
         "`benchmarks/run.py`). Times in ms, median / p95. The paper needed 20 ms per frame.",
