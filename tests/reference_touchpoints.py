@@ -2,19 +2,27 @@
 
 This is how ``depthtouch.touchpoints`` worked before its per-region steps were compiled into
 ``depthtouch.tipkernel``: some 40 small array calls per region. It is kept here as the test
-oracle: the compiled kernel must find the same points (tests/test_touchpoints.py).
+oracle: the compiled kernel must find the same points (tests/test_touchpoints.py). Likewise
+:func:`regions_of_core`, the regions from OpenCV's outer contours, is the oracle of the compiled
+``depthtouch.regions.band_regions`` (tests/test_regions.py).
 """
 
 from __future__ import annotations
+
+from collections.abc import Sequence
 
 import cv2
 import numpy as np
 
 from depthtouch.config import TouchPointConfig
-from depthtouch.regions import HAND_SCALE, BandBounds, Regions, _kernel
+from depthtouch.regions import HAND_SCALE, BandBounds, Regions
 from depthtouch.types import TouchPoints
 
 _K3 = np.ones((3, 3), np.uint8)
+
+
+def _kernel(size: int) -> np.ndarray:
+    return cv2.getStructuringElement(cv2.MORPH_RECT, (size, size))
 # The paper's 3x3 block patterns: the full block and the four half blocks (a 2x3 or 3x2 side).
 _PATTERNS = [
     np.ones((3, 3), np.uint8),
@@ -393,3 +401,53 @@ def _paper_point(
     s = (xs - hand[0]) * dn[0] + (ys - hand[1]) * dn[1]
     i = int(np.argmax(s))
     return float(xs[i]), float(ys[i]), float(hs[ys[i], xs[i]])
+
+
+def regions_of_core(core: np.ndarray, open_px: int, min_area_px: int) -> Regions:
+    """The regions of a band eroded by ``open_px`` (uint8, 0 / 255): the outer contours of its
+    parts (OpenCV), each filled and dilated back by ``open_px`` within its box grown by half of
+    it, those of at least ``min_area_px`` pixels; when two come so close that their dilations
+    could join, the contours of the whole dilated core instead."""
+    if not cv2.hasNonZero(core):
+        return Regions.empty()
+    k = open_px
+    contours, _ = cv2.findContours(core, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
+    pad = k // 2
+    regions = _contour_regions(contours, core.shape, min_area_px, pad, k)
+    boxes = regions.bbox_xywh.tolist()
+    close = any(xi <= xj + wj and xj <= xi + wi and yi <= yj + hj and yj <= yi + hi
+                for i, (xi, yi, wi, hi) in enumerate(boxes) for (xj, yj, wj, hj) in boxes[i + 1:])
+    if pad and close:
+        opened = cv2.dilate(core, _kernel(k))
+        contours, _ = cv2.findContours(opened, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
+        regions = _contour_regions(contours, core.shape, min_area_px, 0, 1)
+    return regions
+
+
+def _contour_regions(contours: Sequence[np.ndarray], shape: tuple[int, ...], min_area: int,
+                     pad: int, k: int) -> Regions:
+    H, W = shape[:2]
+    boxes: list[tuple[int, int, int, int]] = []
+    areas: list[int] = []
+    masks: list[np.ndarray] = []
+    for c in contours:
+        x, y, w, h = cv2.boundingRect(c)
+        if (w + 2 * pad) * (h + 2 * pad) < min_area:
+            continue
+        x0, y0 = max(0, x - pad), max(0, y - pad)
+        x1, y1 = min(W, x + w + pad), min(H, y + h + pad)
+        m: np.ndarray = np.zeros((y1 - y0, x1 - x0), np.uint8)
+        cv2.drawContours(m, [c], -1, 1, thickness=cv2.FILLED, offset=(-x0, -y0))
+        if pad:
+            m = cv2.dilate(m, _kernel(k))
+        area = cv2.countNonZero(m)
+        if area < min_area:
+            continue
+        boxes.append((x0, y0, x1 - x0, y1 - y0))
+        areas.append(area)
+        masks.append(m)
+    if not boxes:
+        return Regions.empty()
+    starts = np.cumsum([0] + [m.size for m in masks[:-1]]).astype(np.int64)
+    return Regions(np.asarray(boxes, np.int64), np.asarray(areas, np.int64),
+                   np.concatenate([m.ravel() for m in masks]), starts)

@@ -96,6 +96,7 @@ def test_replace_keeps_other_values_and_does_not_mutate() -> None:
         ({"regions": {"tu_mm": "high"}}, "must be a number"),
         ({"regions": {"tu_mm": True}}, "must be a number"),
         ({"regions": {"open_px": 2.0}}, "must be a whole number"),
+        ({"regions": {"open_px": 4}}, "regions.open_px = 4 must be odd"),
         ({"surface": {"statistic": 3}}, "must be a str"),
         ({"regions": {"tu_mm": 300.0}}, "allowed (0.0, 200.0]"),
         ({"regions": {"tu_mm": 3.0}}, "must be above regions.tl_floor_mm"),

@@ -2,7 +2,7 @@ import numpy as np
 import pytest
 
 from depthtouch.config import RegionConfig
-from depthtouch.regions import band_bounds, band_masks, find_regions, height_mm
+from depthtouch.regions import band_bounds, band_masks, band_regions, height_mm
 from depthtouch.surface import learn_surface
 from synth import K_640, Finger, make_recording, render_heights
 
@@ -53,23 +53,21 @@ def test_missing_depth_is_in_no_mask(surface):
 def test_noise_alone_gives_no_region(surface):
     b = band_bounds(surface, RegionConfig())
     for seed in range(5):
-        band, _ = band_masks(frame_with(np.zeros((480, 640), np.float32), seed), b)
-        assert len(find_regions(band, b)) == 0
+        assert len(band_regions(frame_with(np.zeros((480, 640), np.float32), seed), b)) == 0
 
 
 def test_regions_found_and_small_ones_dropped(surface):
     b = band_bounds(surface, RegionConfig())
     hm = render_heights((480, 640), [Finger(200, 240, 90), Finger(400, 240, 90)], 1000 / 600)
     hm[50:53, 50:53] = 15.0  # 9 px: under S_min
-    band, _ = band_masks(frame_with(hm), b)
-    r = find_regions(band, b)
+    r = band_regions(frame_with(hm), b)
     assert len(r) == 2
     assert np.all(r.area_px >= b.min_area_px)
     for m, (_x, _y, w, h) in zip(r.masks, r.bbox_xywh):
         assert m.shape == (h, w) and m.any()
 
 
-@pytest.mark.parametrize("open_px", [1, 3, 4, 5])
+@pytest.mark.parametrize("open_px", [1, 3, 5, 7])
 @pytest.mark.parametrize("seed", [0, 1])
 def test_band_core_is_the_eroded_band(open_px, seed):
     """The compiled band + erosion equals OpenCV's, including at the image border."""
@@ -88,3 +86,89 @@ def test_band_core_is_the_eroded_band(open_px, seed):
     k = cv2.getStructuringElement(cv2.MORPH_RECT, (b.open_px, b.open_px))
     want = cv2.erode(band, k) if b.open_px > 1 else band
     np.testing.assert_array_equal(band_core(d, b), want)
+
+
+def _runs_of(core: np.ndarray) -> np.ndarray:
+    """(n, 3) runs (y, x0, x1) of a mask in raster order (the layout regions' kernels use)."""
+    out = []
+    for y in range(core.shape[0]):
+        edges = np.diff(np.concatenate([[0], (core[y] > 0).astype(np.int8), [0]]))
+        out += [(y, a, b) for a, b in zip(np.flatnonzero(edges == 1), np.flatnonzero(edges == -1))]
+    return np.array(out, np.int64).reshape(-1, 3)
+
+
+def _same_regions(got, want) -> None:
+    np.testing.assert_array_equal(got.bbox_xywh, want.bbox_xywh.reshape(-1, 4))
+    np.testing.assert_array_equal(got.area_px, want.area_px)
+    for g, w in zip(got.masks, want.masks, strict=True):
+        np.testing.assert_array_equal(g, w)
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_regions_of_runs_match_opencv_contours(seed):
+    """The runs version (parts, filled holes, dilation box by box, the close-parts fallback,
+    OpenCV's order) gives OpenCV's regions, on random masks with holes, parts inside holes,
+    specks, parts at the border and parts close to each other."""
+    import cv2
+
+    import reference_touchpoints as ref
+    from depthtouch.regions import Regions, _any_close, _dilate_runs, _runs_regions
+
+    rng = np.random.default_rng(seed)
+    n_close = 0
+    for _ in range(300):
+        H, W = (int(v) for v in rng.integers(5, 60, 2))
+        core = np.zeros((H, W), np.uint8)
+        for _ in range(int(rng.integers(1, 8))):
+            x, y = int(rng.integers(0, W)), int(rng.integers(0, H))
+            w, h = (int(v) for v in rng.integers(1, 15, 2))
+            kind = rng.integers(0, 4)
+            if kind == 0:
+                core[y:y + h, x:x + w] = 255
+            elif kind == 1:  # a ring, sometimes with a part inside its hole
+                core[y:y + h, x:x + w] = 255
+                core[y + 2:y + h - 2, x + 2:x + w - 2] = 0
+                if rng.random() < 0.5:
+                    core[y + 4:y + h - 4, x + 4:x + w - 4] = 255
+            elif kind == 2:
+                cv2.circle(core, (x, y), w, 255, -1)
+            else:
+                core[rng.random((H, W)) < 0.05] = 255
+        k = int(rng.choice([1, 3, 5]))
+        min_area = int(rng.integers(1, 40))
+        want = ref.regions_of_core(core, k, min_area)
+        runs = _runs_of(core)
+        if len(runs) == 0:
+            assert len(want) == 0
+            continue
+        boxes, areas, buf, starts = _runs_regions(runs, H, W, min_area, k // 2)
+        if k > 1 and len(boxes) > 1 and _any_close(boxes):
+            n_close += 1
+            boxes, areas, buf, starts = _runs_regions(_dilate_runs(runs, k // 2, H, W), H, W,
+                                                      min_area, 0)
+        _same_regions(Regions(boxes, areas, buf, starts), want)
+    assert n_close > 20  # the fallback was exercised
+
+
+@pytest.mark.parametrize("scene, camera", [("multitouch", "realsense-d435"), ("pinch", "kinect-v2"),
+                                           ("object", "kinect-v1")])
+def test_band_regions_match_opencv_on_recordings(scene, camera):
+    """Frame by frame on simulated recordings: the compiled regions are OpenCV's."""
+    import cv2
+
+    import reference_touchpoints as ref
+    from depthtouch.config import PipelineConfig
+    from depthtouch.regions import band_core
+    from depthtouch.sim import render_scene
+
+    rec = render_scene(scene, camera=camera, distance_m=1.0, seed=3)
+    cfg = PipelineConfig()
+    depth = np.stack([cv2.medianBlur(d, 3) for d in rec.depth])
+    n = int(cfg.surface.learn_s * 30)
+    b = band_bounds(learn_surface(depth[:n], rec.depth_scale_m, rec.K), cfg.regions)
+    found = 0
+    for d in depth[n:]:
+        got = band_regions(d, b)
+        _same_regions(got, ref.regions_of_core(band_core(d, b), b.open_px, b.min_area_px))
+        found += len(got)
+    assert found > 30

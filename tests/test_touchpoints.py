@@ -3,7 +3,7 @@ import pytest
 
 from depthtouch.config import RegionConfig, TouchPointConfig
 from depthtouch.handmap import hand_map
-from depthtouch.regions import band_bounds, band_masks, find_regions
+from depthtouch.regions import band_bounds, band_masks, band_regions
 from depthtouch.surface import learn_surface
 from depthtouch.touchpoints import find_touch_points
 from synth import K_640, Finger, make_recording, render_heights
@@ -24,8 +24,7 @@ def detect(bounds, fingers, method="extremity", seed=0, noise=1.5, flat=None):
         hm = np.maximum(hm, flat)
     d = np.clip(np.rint(1000 - hm + rng.normal(0, noise, hm.shape)), 0, None).astype(np.uint16)
     d[rng.random(d.shape) < 0.01] = 0
-    band, high = band_masks(d, bounds)
-    regions = find_regions(band, bounds)
+    regions = band_regions(d, bounds)
     return find_touch_points(d, regions, bounds, TouchPointConfig(method=method))
 
 

@@ -88,9 +88,9 @@ class RegionConfig:
         the distance and focal length, and never fewer than min_area_floor_px.
     min_area_floor_px: lower bound of S_min in pixels (default 4).
     open_px: side of the square opening applied to the band mask before labelling, which removes
-        one-pixel noise and depth-edge slivers (default 3; 1 = off).
+        one-pixel noise and depth-edge slivers (odd, default 3; 1 = off).
     min_hand_mm2: a raised part not connected to the image border counts as a hand when at least
-        this large (default 6000 mm^2, a palm); see touchpoints.hand_map.
+        this large (default 6000 mm^2, a palm); see handmap.hand_map.
     median_px: a median filter of this size (1 = off, 3 or 5) on every depth frame, the surface
         frames included, before anything else: it removes isolated missing pixels and flying
         pixels and halves stereo noise, so that Tl (which follows the filtered noise) can be low
@@ -120,6 +120,11 @@ class RegionConfig:
         _range("regions.min_area_mm2", self.min_area_mm2, 0.0, 10000.0)
         _range("regions.min_area_floor_px", self.min_area_floor_px, 1, 10000)
         _range("regions.open_px", self.open_px, 1, 15)
+        if self.open_px % 2 == 0:
+            raise ConfigError(
+                f"regions.open_px = {self.open_px!r} must be odd (a square with a centre pixel); "
+                "allowed [1, 15]: 1, 3, 5, ..."
+            )
         _range("regions.min_hand_mm2", self.min_hand_mm2, 0.0, 1e6)
         _range("regions.median_px", self.median_px, 1, 5)
         if self.median_px not in (1, 3, 5):

@@ -13,10 +13,11 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from .regions import HAND_SCALE, BandBounds
+from .regions import HAND_SCALE, BandBounds, label_runs
 
-_DY8 = np.array([-1, -1, -1, 0, 0, 1, 1, 1])
-_DX8 = np.array([-1, 0, 1, -1, 1, -1, 0, 1])
+_S = HAND_SCALE  # a compile-time constant in the kernels below
+_C0 = _S // 2 - 1 if _S % 2 == 0 else _S // 2  # the two middle rows / columns of a block
+_C1 = _S // 2
 
 
 def hand_map(depth: np.ndarray, bounds: BandBounds) -> np.ndarray:
@@ -30,82 +31,96 @@ def hand_map(depth: np.ndarray, bounds: BandBounds) -> np.ndarray:
     """
     if bounds.hand_lo is None or bounds.hand_hi is None or bounds.hand_valid is None:
         raise ValueError("hand_map: bounds without hand samples (made by regions.band_bounds)")
-    return hand_levels(depth, bounds.hand_lo, bounds.hand_hi, bounds.hand_valid, HAND_SCALE,
+    return hand_levels(depth, bounds.hand_lo, bounds.hand_hi, bounds.hand_valid,
                        float(bounds.mm_per_px) ** 2, float(bounds.min_hand_mm2))
 
 
 @numba.njit(cache=True, nogil=True)
 def hand_levels(depth: np.ndarray, hand_lo: np.ndarray, hand_hi: np.ndarray,
-                hand_valid: np.ndarray, scale: int, px_mm2: float, min_hand_mm2: float
-                ) -> np.ndarray:
-    """Where hands are, at 1/scale resolution (uint8: 2 = part of something reaching in from
+                hand_valid: np.ndarray, px_mm2: float, min_hand_mm2: float) -> np.ndarray:
+    """Where hands are, at 1/4 resolution (uint8: 2 = part of something reaching in from
     the image border, 1 = a raised part large enough to be a hand, 0 = no hand).
 
     A coarse pixel is raised when any of the two middle rows and columns of its block is
     above Tu (a bilinear sample between them; thin fingers stay connected; ``hand_lo`` and
-    ``hand_hi``: the depth bounds of being above Tu at those 4 pixels, (h/s, w/s, 4)), or when
-    its corner pixel has no depth over a usable surface pixel (``hand_valid``; an arm close to
-    the camera is often nearer than the camera measures). The raised map is dilated by one
-    coarse pixel, labelled (8-neighbours), and each part is given its level; the level map is
-    dilated once more, so that the coarse grid does not cut off the last pixels of an arm next
-    to a fingertip. ``px_mm2``: area of one full-resolution pixel on the surface (mm^2).
+    ``hand_hi``: the depth bounds of being above Tu at those 4 pixels, 4 planes (4, h/4, w/4)),
+    or when its corner pixel has no depth over a usable surface pixel (``hand_valid``; an arm
+    close to the camera is often nearer than the camera measures). The raised map is dilated by
+    one coarse pixel, labelled (8-neighbours), and each part is given its level; the level map
+    is dilated once more, so that the coarse grid does not cut off the last pixels of an arm
+    next to a fingertip. ``px_mm2``: area of one full-resolution pixel on the surface (mm^2).
     """
+    return _dilate_max(_levels(_dilate_max(_raised(depth, hand_lo, hand_hi, hand_valid)),
+                               px_mm2, min_hand_mm2))
+
+
+@numba.njit(cache=True, nogil=True)
+def _raised(depth: np.ndarray, lo: np.ndarray, hi: np.ndarray, hand_valid: np.ndarray
+            ) -> np.ndarray:
+    """The raised coarse pixels (see :func:`hand_levels`). The block size is the constant
+    ``HAND_SCALE``: with it known when compiling, the sampling loop is vectorised (5x faster)."""
     H, W = depth.shape
-    sh, sw = hand_lo.shape[0], hand_lo.shape[1]
-    raw = np.zeros((sh, sw), np.uint8)
-    c0 = scale // 2 - 1 if scale % 2 == 0 else scale // 2
-    c1 = scale // 2
+    sh, sw = lo.shape[1], lo.shape[2]
+    raw = np.empty((sh, sw), np.uint8)
     for j in range(sh):
-        ya, yb = min(H - 1, scale * j + c0), min(H - 1, scale * j + c1)
-        for i in range(sw):
-            xa, xb = min(W - 1, scale * i + c0), min(W - 1, scale * i + c1)
-            d0, d1, d2, d3 = depth[ya, xa], depth[ya, xb], depth[yb, xa], depth[yb, xb]
-            hit = ((hand_lo[j, i, 0] <= d0 and d0 <= hand_hi[j, i, 0])
-                   or (hand_lo[j, i, 1] <= d1 and d1 <= hand_hi[j, i, 1])
-                   or (hand_lo[j, i, 2] <= d2 and d2 <= hand_hi[j, i, 2])
-                   or (hand_lo[j, i, 3] <= d3 and d3 <= hand_hi[j, i, 3]))
-            if not hit:
-                hit = depth[scale * j, scale * i] == 0 and hand_valid[j, i]
-            if hit:
-                raw[j, i] = 1
-    small = _dilate_max(raw)
-    labels = np.zeros((sh, sw), np.int32)
-    stack_y = np.empty(sh * sw, np.int64)
-    stack_x = np.empty(sh * sw, np.int64)
-    level_of = np.zeros(sh * sw + 1, np.uint8)
-    n_lab = 0
+        ra = depth[min(H - 1, _S * j + _C0)]
+        rb = depth[min(H - 1, _S * j + _C1)]
+        rc = depth[_S * j]
+        lo0, lo1, lo2, lo3 = lo[0, j], lo[1, j], lo[2, j], lo[3, j]
+        hi0, hi1, hi2, hi3 = hi[0, j], hi[1, j], hi[2, j], hi[3, j]
+        ok = hand_valid[j]
+        if W >= _S:
+            for i in range(sw):
+                xa = _S * i + _C0
+                xb = _S * i + _C1
+                d0, d1, d2, d3 = ra[xa], ra[xb], rb[xa], rb[xb]
+                raw[j, i] = (((lo0[i] <= d0) & (d0 <= hi0[i])) | ((lo1[i] <= d1) & (d1 <= hi1[i]))
+                             | ((lo2[i] <= d2) & (d2 <= hi2[i])) | ((lo3[i] <= d3) & (d3 <= hi3[i]))
+                             | ((rc[_S * i] == 0) & ok[i]))
+        else:  # a frame narrower than one block (tests): clamp the columns
+            for i in range(sw):
+                xa, xb = min(W - 1, _S * i + _C0), min(W - 1, _S * i + _C1)
+                d0, d1, d2, d3 = ra[xa], ra[xb], rb[xa], rb[xb]
+                raw[j, i] = (((lo0[i] <= d0) & (d0 <= hi0[i])) | ((lo1[i] <= d1) & (d1 <= hi1[i]))
+                             | ((lo2[i] <= d2) & (d2 <= hi2[i])) | ((lo3[i] <= d3) & (d3 <= hi3[i]))
+                             | ((rc[_S * i] == 0) & ok[i]))
+    return raw
+
+
+@numba.njit(cache=True, nogil=True)
+def _levels(small: np.ndarray, px_mm2: float, min_hand_mm2: float) -> np.ndarray:
+    """Level of each part (8-connected) of a coarse mask: 2 when it touches the image border,
+    1 when its area is at least ``min_hand_mm2``, else 0. The parts are labelled by runs (see
+    :func:`regions.label_runs`): a few hundred runs instead of a flood over every pixel."""
+    sh, sw = small.shape
+    runs = np.empty((sh * (sw // 2 + 1), 3), np.int64)
+    n = 0
     for j in range(sh):
-        for i in range(sw):
-            if not small[j, i] or labels[j, i]:
-                continue
-            n_lab += 1
-            labels[j, i] = n_lab
-            stack_y[0], stack_x[0] = j, i
-            top = 1
-            area = 0
-            border = False
-            while top > 0:
-                top -= 1
-                y, x = stack_y[top], stack_x[top]
-                area += 1
-                if y == 0 or x == 0 or y == sh - 1 or x == sw - 1:
-                    border = True
-                for k in range(8):
-                    yy = y + _DY8[k]
-                    xx = x + _DX8[k]
-                    if 0 <= yy < sh and 0 <= xx < sw and small[yy, xx] and not labels[yy, xx]:
-                        labels[yy, xx] = n_lab
-                        stack_y[top], stack_x[top] = yy, xx
-                        top += 1
-            if border:
-                level_of[n_lab] = 2
-            elif area * scale * scale * px_mm2 >= min_hand_mm2:
-                level_of[n_lab] = 1
+        row = small[j]
+        i = 0
+        while i < sw:
+            if row[i]:
+                a = i
+                while i < sw and row[i]:
+                    i += 1
+                runs[n, 0], runs[n, 1], runs[n, 2] = j, a, i
+                n += 1
+            else:
+                i += 1
+    comp, n_comp = label_runs(runs[:n])
+    area = np.zeros(n_comp, np.int64)
+    border = np.zeros(n_comp, np.bool_)
+    for r in range(n):
+        c = comp[r]
+        area[c] += runs[r, 2] - runs[r, 1]
+        if runs[r, 0] == 0 or runs[r, 0] == sh - 1 or runs[r, 1] == 0 or runs[r, 2] == sw:
+            border[c] = True
     lev = np.zeros((sh, sw), np.uint8)
-    for j in range(sh):
-        for i in range(sw):
-            lev[j, i] = level_of[labels[j, i]]
-    return _dilate_max(lev)
+    for r in range(n):
+        c = comp[r]
+        v = 2 if border[c] else (1 if area[c] * _S * _S * px_mm2 >= min_hand_mm2 else 0)
+        lev[runs[r, 0], runs[r, 1]:runs[r, 2]] = v
+    return lev
 
 
 @numba.njit(cache=True, nogil=True)
@@ -137,5 +152,5 @@ def warm_up() -> None:
     """Compile (or load from the on-disk cache) this module's kernels (see
     :func:`tipkernel.warm_up`)."""
     z = np.zeros((8, 8), np.uint16)
-    zs = np.zeros((2, 2, 4), np.uint16)
-    hand_levels(z, zs, zs, np.ones((2, 2), np.bool_), HAND_SCALE, 1.0, 100.0)
+    zs = np.zeros((4, 2, 2), np.uint16)
+    hand_levels(z, zs, zs, np.ones((2, 2), np.bool_), 1.0, 100.0)

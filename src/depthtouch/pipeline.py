@@ -24,7 +24,7 @@ from .adapt import SurfaceAdapter
 from .config import PipelineConfig
 from .errors import SourceError, SurfaceError
 from .filters import TouchFilter, make_filter
-from .regions import BandBounds, band_bounds, band_core, height_mm, regions_of_core
+from .regions import BandBounds, band_bounds, band_regions, height_mm
 from .surface import SurfaceLearner, SurfaceModel
 from .touchpoints import find_touch_points
 from .tracking import Tracker, TrackUpdate
@@ -190,7 +190,7 @@ class Pipeline:
                 self._last_frame = frame
                 return events
         ta = time.perf_counter()
-        regions = regions_of_core(band_core(frame.depth, b), b)
+        regions = band_regions(frame.depth, b)
         t1 = time.perf_counter()
         points = find_touch_points(frame.depth, regions, b, self.config.touchpoints)
         t2 = time.perf_counter()

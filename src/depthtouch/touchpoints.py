@@ -20,13 +20,11 @@ front has one bump per fingertip; bumps at least 1.6 tip radii apart with a dip 
 a radius between them are separate fingers, and the region is cut at the dips.
 
 Speed: the per-region work runs in one compiled call per frame (:mod:`depthtouch.tipkernel`),
-each region on a small window around it; the whole-frame steps (band, regions, hand map) are
-OpenCV calls.
+each region on a small window around it; the whole-frame steps (band and regions, hand map) are
+compiled too (:mod:`depthtouch.regions`, :mod:`depthtouch.handmap`).
 """
 
 from __future__ import annotations
-
-import itertools
 
 import numpy as np
 
@@ -45,21 +43,18 @@ def find_touch_points(
 ) -> TouchPoints:
     """Touch points of the regions of one frame (pure; see the module doc).
 
-    depth: the (prefiltered) uint16 frame; regions: from :func:`regions.find_regions`;
+    depth: the (prefiltered) uint16 frame; regions: from :func:`regions.band_regions`;
     bounds: the surface's band bounds.
     """
     if len(regions) == 0:
         return TouchPoints.empty()
     hands = hand_map(depth, bounds)
-    boxes = np.ascontiguousarray(regions.bbox_xywh, dtype=np.int64)
-    sizes = [m.size for m in regions.masks]
-    start = np.array([0, *itertools.accumulate(sizes[:-1])], np.int64)
-    masks = np.concatenate([m.ravel() for m in regions.masks]).astype(np.uint8, copy=False)
     core = regions.band if regions.band is not None else _core_of(regions, depth.shape)
     pad = bounds.open_px // 2 if regions.band is not None else 0
     out = frame_points(
         depth, bounds.high_lo, bounds.high_hi, hands, HAND_SCALE, bounds.surface_mm,
-        bounds.factor, bounds.tl_mm, bounds.valid, float(bounds.to_mm), core, pad, boxes, masks, start,
+        bounds.factor, bounds.tl_mm, bounds.valid, float(bounds.to_mm), core, pad,
+        regions.bbox_xywh, regions.mask_buf, regions.mask_start,
         float(config.tip_radius_mm / bounds.mm_per_px), 1 if config.method == "paper" else 0,
         int(config.paper_ds_px), float(config.paper_tt_mm),
     )
