@@ -26,42 +26,23 @@ _INF = 1e30
 
 
 @numba.njit(cache=True, nogil=True)
-def _chebyshev(mask: np.ndarray, cap: int) -> np.ndarray:
-    """Chessboard distance (px) of every pixel to the nearest pixel of ``mask``, at most cap."""
+def _near(mask: np.ndarray, r: int) -> np.ndarray:
+    """1 where a pixel of ``mask`` lies within chessboard distance ``r`` (the (2r+1)^2 square
+    around), from the mask's summed-area table: two passes whatever r."""
     h, w = mask.shape
-    d = np.empty((h, w), np.int32)
+    S = np.zeros((h + 1, w + 1), np.int32)
     for y in range(h):
+        acc = 0
         for x in range(w):
-            if mask[y, x]:
-                d[y, x] = 0
-                continue
-            v = cap
-            if x > 0 and d[y, x - 1] + 1 < v:
-                v = d[y, x - 1] + 1
-            if y > 0:
-                if d[y - 1, x] + 1 < v:
-                    v = d[y - 1, x] + 1
-                if x > 0 and d[y - 1, x - 1] + 1 < v:
-                    v = d[y - 1, x - 1] + 1
-                if x < w - 1 and d[y - 1, x + 1] + 1 < v:
-                    v = d[y - 1, x + 1] + 1
-            d[y, x] = v
-    for y in range(h - 1, -1, -1):
-        for x in range(w - 1, -1, -1):
-            v = d[y, x]
-            if v == 0:
-                continue
-            if x < w - 1 and d[y, x + 1] + 1 < v:
-                v = d[y, x + 1] + 1
-            if y < h - 1:
-                if d[y + 1, x] + 1 < v:
-                    v = d[y + 1, x] + 1
-                if x < w - 1 and d[y + 1, x + 1] + 1 < v:
-                    v = d[y + 1, x + 1] + 1
-                if x > 0 and d[y + 1, x - 1] + 1 < v:
-                    v = d[y + 1, x - 1] + 1
-            d[y, x] = v
-    return d
+            acc += mask[y, x] != 0
+            S[y + 1, x + 1] = S[y, x + 1] + acc
+    out = np.empty((h, w), np.uint8)
+    for y in range(h):
+        ya, yb = max(0, y - r), min(h, y + r + 1)
+        for x in range(w):
+            xa, xb = max(0, x - r), min(w, x + r + 1)
+            out[y, x] = (S[yb, xb] - S[ya, xb] - S[yb, xa] + S[ya, xa]) > 0
+    return out
 
 
 @numba.njit(cache=True, nogil=True)
@@ -102,53 +83,40 @@ def _chamfer(mask: np.ndarray) -> np.ndarray:
 @numba.njit(cache=True, nogil=True)
 def _smooth_heights(depth: np.ndarray, surf: np.ndarray, fact: np.ndarray, valid: np.ndarray,
                     to_mm: float, x0: int, y0: int, h: int, w: int) -> np.ndarray:
-    """Height (mm) over the window, 3x3 mean of the known pixels; NaN where fewer than 3 of 9
-    are known."""
-    hm = np.zeros((h, w), np.float64)
-    ok = np.zeros((h, w), np.float64)
+    """Height (mm) over the window, 3x3 mean of the known pixels of the window; NaN where fewer
+    than 3 of 9 are known. (Sums over a copy with a ring of unknown pixels: no edge cases.)"""
+    hm = np.zeros((h + 2, w + 2), np.float64)
+    ok = np.zeros((h + 2, w + 2), np.float64)
+    for y in range(h):
+        dr, vr, sr, fr = depth[y0 + y], valid[y0 + y], surf[y0 + y], fact[y0 + y]
+        for x in range(w):
+            d = dr[x0 + x]
+            if d > 0 and vr[x0 + x]:
+                hm[y + 1, x + 1] = (sr[x0 + x] - d * to_mm) * fr[x0 + x]
+                ok[y + 1, x + 1] = 1.0
+    rs = np.empty((h + 2, w), np.float64)
+    rc = np.empty((h + 2, w), np.float64)
+    for y in range(h + 2):
+        a, c, sa, sc = hm[y], ok[y], rs[y], rc[y]
+        for x in range(w):
+            sa[x] = a[x] + a[x + 1] + a[x + 2]
+            sc[x] = c[x] + c[x + 1] + c[x + 2]
+    out = np.empty((h, w), np.float64)
     for y in range(h):
         for x in range(w):
-            d = depth[y0 + y, x0 + x]
-            if d > 0 and valid[y0 + y, x0 + x]:
-                hm[y, x] = (surf[y0 + y, x0 + x] - d * to_mm) * fact[y0 + y, x0 + x]
-                ok[y, x] = 1.0
-    # 3-wide sums along rows, then along columns
-    rs = np.zeros((h, w), np.float64)
-    rc = np.zeros((h, w), np.float64)
-    for y in range(h):
-        for x in range(w):
-            a = hm[y, x]
-            c = ok[y, x]
-            if x > 0:
-                a += hm[y, x - 1]
-                c += ok[y, x - 1]
-            if x < w - 1:
-                a += hm[y, x + 1]
-                c += ok[y, x + 1]
-            rs[y, x] = a
-            rc[y, x] = c
-    out = np.full((h, w), np.nan, np.float64)
-    for y in range(h):
-        for x in range(w):
-            num = rs[y, x]
-            den = rc[y, x]
-            if y > 0:
-                num += rs[y - 1, x]
-                den += rc[y - 1, x]
-            if y < h - 1:
-                num += rs[y + 1, x]
-                den += rc[y + 1, x]
-            if den >= 2.5:  # at least 3 of 9 known
-                out[y, x] = num / den
+            num = rs[y, x] + rs[y + 1, x] + rs[y + 2, x]
+            den = rc[y, x] + rc[y + 1, x] + rc[y + 2, x]
+            out[y, x] = num / den if den >= 2.5 else np.nan  # at least 3 of 9 known
     return out
 
 
 @numba.njit(cache=True, nogil=True)
-def _attach(near: np.ndarray, reach: int, depth: np.ndarray, high_lo: np.ndarray,
+def _attach(near: np.ndarray, depth: np.ndarray, high_lo: np.ndarray,
             high_hi: np.ndarray, hands: np.ndarray, scale: int, x0: int, y0: int
             ) -> tuple[int, float, float, bool]:
-    """Hand pixels within ``reach`` px (chessboard) of a mask: count, mean x, y (window), and
-    whether any belongs to an arm reaching in from the border (hand map level 2)."""
+    """Hand pixels among the ``near`` pixels (those next to a mask, see :func:`_near`): count,
+    mean x, y (window), and whether any belongs to an arm reaching in from the border (hand map
+    level 2)."""
     h, w = near.shape
     sh, sw = hands.shape
     n = 0
@@ -157,7 +125,7 @@ def _attach(near: np.ndarray, reach: int, depth: np.ndarray, high_lo: np.ndarray
     border = False
     for y in range(h):
         for x in range(w):
-            if near[y, x] > reach:
+            if not near[y, x]:
                 continue
             d = depth[y0 + y, x0 + x]
             if d < high_lo[y0 + y, x0 + x] or d > high_hi[y0 + y, x0 + x]:
@@ -297,8 +265,8 @@ def _extremity(finger_x: np.ndarray, finger_y: np.ndarray, hs: np.ndarray, hx: f
             n_ahead += 1
     k = int(np.rint(math.pi * r * r / 2.0))
     if n_ahead:
-        srt = np.sort(ahead[:n_ahead])
-        s_c = -srt[min(k, n_ahead - 1)]
+        kk = min(k, n_ahead - 1)
+        s_c = -np.partition(ahead[:n_ahead], kk)[kk]  # the kk-th smallest (no full sort)
     else:
         s_c = sf - r
     x = hx + s_c * ux - l_c * uy
@@ -314,8 +282,7 @@ def _extremity(finger_x: np.ndarray, finger_y: np.ndarray, hs: np.ndarray, hx: f
                 n_h += 1
     if n_h == 0:
         return x, y, np.nan
-    srt_h = np.sort(hv[:n_h])
-    return x, y, srt_h[n_h // 4]
+    return x, y, np.partition(hv[:n_h], n_h // 4)[n_h // 4]
 
 
 @numba.njit(cache=True, nogil=True)
@@ -423,8 +390,8 @@ def frame_points(
         if area == 0:
             continue
         # --- the hand: hand pixels next to the region (a flat object or noise has none) ----
-        near = _chebyshev(reg, 3)
-        n_att, hx, hy, border = _attach(near, 2, depth, high_lo, high_hi, hands, scale, x0, y0)
+        near = _near(reg, 2)
+        n_att, hx, hy, border = _attach(near, depth, high_lo, high_hi, hands, scale, x0, y0)
         if n_att < 3:
             continue
         ex = np.empty(area, np.int64)
@@ -473,7 +440,7 @@ def frame_points(
                 continue
             phx, phy, pborder = hx, hy, border
             if n_parts > 1:
-                na, ax, ay, ab = _attach(_chebyshev(part, 3), 2, depth, high_lo, high_hi, hands, scale,
+                na, ax, ay, ab = _attach(_near(part, 2), depth, high_lo, high_hi, hands, scale,
                                          x0, y0)
                 if na >= 3:
                     phx, phy, pborder = ax, ay, ab
@@ -510,19 +477,20 @@ def _band_near(core: np.ndarray, pad: int, reg: np.ndarray, x0: int, y0: int,
     at x0, y0) and ``force`` is False."""
     H, W = core.shape
     h, w = reg.shape
-    found = force
-    if not found:
+    if not force:
+        # anything else there: more core pixels in the window than in the region
+        n_all = 0
         for gy in range(oy0, oy1):
+            row = core[gy]
             for gx in range(ox0, ox1):
-                if core[gy, gx]:
-                    ry, rx = gy - y0, gx - x0
-                    if ry < 0 or rx < 0 or ry >= h or rx >= w or not reg[ry, rx]:
-                        found = True
-                        break
-            if found:
-                break
-    if not found:
-        return np.zeros((0, 0), np.uint8)
+                n_all += row[gx] != 0
+        n_reg = 0
+        for y in range(h):
+            for x in range(w):
+                if reg[y, x] and core[y0 + y, x0 + x]:
+                    n_reg += 1
+        if n_all == n_reg:
+            return np.zeros((0, 0), np.uint8)
     band = np.zeros((oy1 - oy0, ox1 - ox0), np.uint8)
     for gy in range(oy0, oy1):
         for gx in range(ox0, ox1):
@@ -571,13 +539,13 @@ def _grow(part: np.ndarray, own: np.ndarray, hs: np.ndarray, tl: np.ndarray, x0:
     """The finger's pixels near its tip: the part grown into raised pixels within 2 rr of it
     that are its ``own``, and connected to it (4-neighbours)."""
     h, w = part.shape
-    reach = _chebyshev(part, 2 * rr + 1)
+    reach = _near(part, 2 * rr)
     grown = np.zeros((h, w), np.uint8)
     for y in range(h):
         for x in range(w):
             if part[y, x]:
                 grown[y, x] = 1
-            elif reach[y, x] <= 2 * rr and own[y, x]:
+            elif reach[y, x] and own[y, x]:
                 v = hs[y, x]
                 if v == v and v > max(0.5 * tl[y0 + y, x0 + x], 2.0):
                     grown[y, x] = 1
