@@ -172,3 +172,41 @@ def test_band_regions_match_opencv_on_recordings(scene, camera):
         _same_regions(got, ref.regions_of_core(band_core(d, b), b.open_px, b.min_area_px))
         found += len(got)
     assert found > 30
+
+
+def _depth_bounds_numpy(surface_mm, valid, factor, tl_mm, to_mm, tu_mm, hand_max_mm):
+    """The depth bounds as whole-array numpy float32 operations (the compiled kernel's oracle)."""
+    s_units = surface_mm / np.float32(to_mm)
+    per_mm = 1.0 / (np.float32(to_mm) * factor)
+    band_lo = np.ceil(s_units - np.float32(tu_mm) * per_mm + 1e-3)
+    band_hi = np.floor(s_units - tl_mm * per_mm - 1e-3)
+    high_hi = band_lo - 1
+    high_lo = np.ceil(s_units - np.float32(hand_max_mm) * per_mm)
+
+    def clip(a, empty):
+        out = np.clip(a, 1, 65535).astype(np.uint16)
+        out[~valid] = empty
+        return out
+
+    return clip(band_lo, 1), clip(band_hi, 0), clip(high_lo, 1), clip(high_hi, 0)
+
+
+def test_depth_bounds_bit_for_bit_as_numpy():
+    from depthtouch.regions import _depth_bounds
+
+    rng = np.random.default_rng(0)
+    for _ in range(200):
+        h, w = (int(v) for v in rng.integers(1, 40, 2))
+        to_mm = float(rng.choice([1.0, 0.1, 0.125, 0.25]))
+        surf = rng.uniform(200, 5000, (h, w)).astype(np.float32)
+        if rng.random() < 0.3:
+            surf = np.rint(surf)  # whole numbers meet the rounding edges
+        factor = rng.uniform(0.5, 1.5, (h, w)).astype(np.float32)
+        if rng.random() < 0.3:
+            factor[:] = 1.0
+        args = (surf, rng.random((h, w)) > 0.1, factor,
+                rng.uniform(1, 20, (h, w)).astype(np.float32), to_mm,
+                float(rng.uniform(21, 40)), float(rng.uniform(100, 800)))
+        for got, want in zip(_depth_bounds(*args), _depth_bounds_numpy(*args), strict=True):
+            assert got.dtype == np.uint16
+            np.testing.assert_array_equal(got, want)

@@ -204,26 +204,29 @@ def _stripe_update(
     """
     h, w = depth.shape
     n_abs = 0
+    a = np.float32(alpha)
+    drift_on = alpha >= 0.0
+    t32 = np.float32(tt)
+    inf = np.float32(np.inf)
+    # without branches (selects), row by row: the compiler vectorises it
     for y in range(h):
+        dr, sr, fr, tr, vr = depth[y], surface_mm[y], factor[y], tl_mm[y], valid[y]
+        since_r, prev_r, tol_r, excl_r = since[y], prev[y], still_tol[y], exclude[y]
         for x in range(w):
-            d = depth[y, x]
+            d = dr[x]
             dm = np.float32(d) * np.float32(to_mm)
-            s = surface_mm[y, x]
-            ok = d > 0 and valid[y, x]
-            changed = ok and abs((s - dm) * factor[y, x]) > tl_mm[y, x]
-            if not changed:
-                since[y, x] = np.inf
-                if ok and alpha >= 0.0:
-                    surface_mm[y, x] = s + np.float32(alpha) * (dm - s)
-            else:
-                if not have_prev or since[y, x] == np.inf or \
-                        abs(dm - prev[y, x]) > still_tol[y, x]:
-                    since[y, x] = tt
-                if tt - since[y, x] >= absorb_s and not exclude[y, x]:
-                    surface_mm[y, x] = dm
-                    since[y, x] = np.inf
-                    n_abs += 1
-            prev[y, x] = dm
+            s = sr[x]
+            ok = (d > 0) & vr[x]
+            changed = ok & (abs((s - dm) * fr[x]) > tr[x])
+            si = since_r[x]
+            moved = (not have_prev) | (si == inf) | (abs(dm - prev_r[x]) > tol_r[x])
+            si = t32 if moved else si
+            absorb = changed & (tt - si >= absorb_s) & (not excl_r[x])
+            drift = (not changed) & ok & drift_on
+            sr[x] = dm if absorb else (s + a * (dm - s) if drift else s)
+            since_r[x] = si if (changed & (not absorb)) else inf
+            prev_r[x] = dm
+            n_abs += absorb
     return n_abs
 
 

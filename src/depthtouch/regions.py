@@ -65,19 +65,43 @@ def _depth_bounds(
     to_mm: float, tu_mm: float, hand_max_mm: float,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """uint16 (band_lo, band_hi, high_lo, high_hi) for a block of pixels (pure)."""
-    s_units = surface_mm / np.float32(to_mm)
-    # height h = (s - d) * to_mm * f  <=>  d = s - h / (to_mm * f)
-    per_mm = 1.0 / (np.float32(to_mm) * factor)
-    band_lo = np.ceil(s_units - np.float32(tu_mm) * per_mm + 1e-3)
-    band_hi = np.floor(s_units - tl_mm * per_mm - 1e-3)
-    high_hi = band_lo - 1
-    high_lo = np.ceil(s_units - np.float32(hand_max_mm) * per_mm)
-    def clip(a: np.ndarray, empty: int) -> np.ndarray:
-        out = np.clip(a, 1, 65535, out=a).astype(np.uint16)
-        np.copyto(out, np.uint16(empty), where=~valid)
-        return out
+    h, w = surface_mm.shape
+    out = np.empty((4, h, w), np.uint16)
+    _bounds_kernel(np.ascontiguousarray(surface_mm), np.ascontiguousarray(valid),
+                   np.ascontiguousarray(factor), np.ascontiguousarray(tl_mm),
+                   float(to_mm), float(tu_mm), float(hand_max_mm), out)
+    return out[0], out[1], out[2], out[3]
 
-    return clip(band_lo, 1), clip(band_hi, 0), clip(high_lo, 1), clip(high_hi, 0)
+
+@numba.njit(cache=True, nogil=True)
+def _bounds_kernel(surface_mm: np.ndarray, valid: np.ndarray, factor: np.ndarray,
+                   tl_mm: np.ndarray, to_mm: float, tu_mm: float, hand_max_mm: float,
+                   out: np.ndarray) -> None:
+    """:func:`_depth_bounds` pixel by pixel, in float32 as numpy would do it (bit for bit).
+
+    A pixel is in the band when surface - Tu < d < surface - Tl: the height
+    h = (s - d) * to_mm * f, so d = s - h / (to_mm * f). Out of range values are clipped to
+    1..65535; unusable pixels get an empty range (lo 1, hi 0)."""
+    h, w = surface_mm.shape
+    t = np.float32(to_mm)
+    tu = np.float32(tu_mm)
+    hand_max = np.float32(hand_max_mm)
+    eps = np.float32(1e-3)
+    one = np.float32(1.0)
+    for y in range(h):
+        for x in range(w):
+            if not valid[y, x]:
+                out[0, y, x], out[1, y, x], out[2, y, x], out[3, y, x] = 1, 0, 1, 0
+                continue
+            s_units = surface_mm[y, x] / t
+            per_mm = one / (t * factor[y, x])
+            band_lo = np.ceil(s_units - tu * per_mm + eps)
+            band_hi = np.floor(s_units - tl_mm[y, x] * per_mm - eps)
+            high_lo = np.ceil(s_units - hand_max * per_mm)
+            out[0, y, x] = np.uint16(min(max(band_lo, one), np.float32(65535)))
+            out[1, y, x] = np.uint16(min(max(band_hi, one), np.float32(65535)))
+            out[2, y, x] = np.uint16(min(max(high_lo, one), np.float32(65535)))
+            out[3, y, x] = np.uint16(min(max(band_lo - one, one), np.float32(65535)))
 
 
 def band_bounds(surface: SurfaceModel, config: RegionConfig, tip_radius_mm: float = 7.0) -> BandBounds:
@@ -124,11 +148,14 @@ def _hand_samples(a: np.ndarray, j0: int = 0, j1: int | None = None) -> np.ndarr
     H, W = a.shape
     sh, sw = max(1, H // s), max(1, W // s)
     j1 = sh if j1 is None else j1
-    jj, ii = np.arange(j0, j1), np.arange(sw)
     c0, c1 = s // 2 - 1, s // 2
     out = np.empty((4, j1 - j0, sw), a.dtype)
     for k, (cy, cx) in enumerate(((c0, c0), (c0, c1), (c1, c0), (c1, c1))):
-        out[k] = a[np.ix_(np.minimum(H - 1, s * jj + cy), np.minimum(W - 1, s * ii + cx))]
+        if min(H, W) >= s:  # every sample inside: strided views
+            out[k] = a[s * j0 + cy:s * j1:s, cx:s * sw:s]
+        else:
+            jj, ii = np.arange(j0, j1), np.arange(sw)
+            out[k] = a[np.ix_(np.minimum(H - 1, s * jj + cy), np.minimum(W - 1, s * ii + cx))]
     return out
 
 
