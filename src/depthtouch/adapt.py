@@ -17,6 +17,8 @@ horizontal stripe of the image per frame (so the cost is spread evenly):
 
 from __future__ import annotations
 
+import math
+
 import cv2
 import numba
 import numpy as np
@@ -138,17 +140,16 @@ class SurfaceAdapter:
             self._coarse = None  # the surface moved on: refresh its 1/8 view
             self._exclusions(depth, touch_xy_px)
         y0, y1 = int(self._stripes[k]), int(self._stripes[k + 1])
-        rows = slice(y0, y1)
-        tt = np.float32(t - self._t0) if self._t0 is not None else np.float32(0)
+        tt = float(np.float32(t - self._t0)) if self._t0 is not None else 0.0
         if self._t0 is None:
             self._t0 = t
-        last = self._visit_t[k]
+        last = float(self._visit_t[k])
         alpha = (min(1.0, (t - last) / cfg.drift_tau_s)
-                 if np.isfinite(last) and t > last else -1.0)
+                 if math.isfinite(last) and t > last else -1.0)
         n_abs = _stripe_update(
-            depth[rows], b.surface_mm[rows], b.factor[rows], b.tl_mm[rows], b.valid[rows],
-            self._since[rows], self._prev[rows], self._still_tol[rows], self._exclude[rows],
-            float(b.to_mm), float(tt), float(cfg.absorb_s), bool(self._have_prev[k]), alpha,
+            depth, b.surface_mm, b.factor, b.tl_mm, b.valid, self._since, self._prev,
+            self._still_tol, self._exclude, y0, y1, float(b.to_mm), tt, float(cfg.absorb_s),
+            bool(self._have_prev[k]), alpha,
         )
         self.absorbed_px += n_abs
         self._visit_t[k] = t
@@ -191,25 +192,26 @@ class SurfaceAdapter:
 def _stripe_update(
     depth: np.ndarray, surface_mm: np.ndarray, factor: np.ndarray, tl_mm: np.ndarray,
     valid: np.ndarray, since: np.ndarray, prev: np.ndarray, still_tol: np.ndarray,
-    exclude: np.ndarray, to_mm: float, tt: float, absorb_s: float, have_prev: bool,
-    alpha: float,
+    exclude: np.ndarray, y0: int, y1: int, to_mm: float, tt: float, absorb_s: float,
+    have_prev: bool, alpha: float,
 ) -> int:
-    """One stripe of :meth:`SurfaceAdapter.update`, pixel by pixel in one compiled pass
-    (updates ``surface_mm``, ``since`` and ``prev`` in place; returns the pixels absorbed).
+    """The stripe of rows y0:y1 of :meth:`SurfaceAdapter.update`, pixel by pixel in one
+    compiled pass (updates ``surface_mm``, ``since`` and ``prev`` in place; returns the pixels
+    absorbed).
 
     A pixel off the surface by more than its Tl is "changed"; its ``since`` restarts when it
     moved by more than ``still_tol`` since the last visit; a change still for ``absorb_s`` and
     not excluded becomes surface. Unchanged pixels follow the frame by ``alpha`` (drift;
     alpha < 0: not this visit).
     """
-    h, w = depth.shape
+    w = depth.shape[1]
     n_abs = 0
     a = np.float32(alpha)
     drift_on = alpha >= 0.0
     t32 = np.float32(tt)
     inf = np.float32(np.inf)
     # without branches (selects), row by row: the compiler vectorises it
-    for y in range(h):
+    for y in range(y0, y1):
         dr, sr, fr, tr, vr = depth[y], surface_mm[y], factor[y], tl_mm[y], valid[y]
         since_r, prev_r, tol_r, excl_r = since[y], prev[y], still_tol[y], exclude[y]
         for x in range(w):
@@ -259,8 +261,8 @@ def warm_up() -> None:
     b = np.ones((8, 8), np.bool_)
     _blocks(z16, 4, 1.0, b)
     _compare_blocks(f, f.copy(), f, f, 0.5)
-    _stripe_update(z16, f, f + 1, f + 1, b, f.copy(), f.copy(), f + 1, ~b, 1.0, 0.0, 0.5, False,
-                   -1.0)
+    _stripe_update(z16, f, f + 1, f + 1, b, f.copy(), f.copy(), f + 1, ~b, 0, 8, 1.0, 0.0, 0.5,
+                   False, -1.0)
 
 
 @numba.njit(cache=True, nogil=True)
