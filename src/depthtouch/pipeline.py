@@ -251,7 +251,7 @@ class Pipeline:
         filtered: list[list[float]] = []  # mm, in the order of the measured updates
         if measured:
             ids = np.array([t.id for t in measured], np.int64)
-            xy = np.array([(t.xy_px[0] * scale, t.xy_px[1] * scale) for t in measured], np.float64)
+            xy = np.array([c * scale for t in measured for c in t.xy_px], np.float64).reshape(-1, 2)
             filtered = self._filter.update(ids, xy, frame.timestamp_s).tolist()
         ended = [u.track.id for u in updates if u.state == "up"]
         if ended:

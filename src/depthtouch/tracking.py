@@ -138,8 +138,9 @@ class Tracker:
         pos: list[XY] = [(x * scale, y * scale) for x, y in xy]
         h = points.height_mm.tolist()
         area = points.area_px.tolist()
-        border = ([True] * n_p if points.hand_at_border is None
-                  else [bool(b) for b in points.hand_at_border.tolist()])
+        hb = points.hand_at_border
+        border: list[bool] = ([True] * n_p if hb is None else hb.tolist() if hb.dtype.kind == "b"
+                              else [bool(b) for b in hb.tolist()])
         # (an unknown height, NaN, compares False: never a touch)
         off, on = self.touch.touch_off_mm, self.touch.touch_on_mm
         ok_cont = [v <= off for v in h]
