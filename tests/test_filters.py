@@ -161,6 +161,34 @@ def test_many_ids_grow_the_state_table():
     assert f.active_ids == list(range(40))
 
 
+@pytest.mark.parametrize("name", FILTERS)
+def test_usual_frame_and_frame_with_a_new_touch_give_the_same_numbers(name):
+    """A frame of known touches with time advanced takes a shorter way through update() than one
+    with a new touch (or no time elapsed); the known touches get the same doubles either way."""
+    rng = np.random.default_rng(11)
+    t = np.cumsum(rng.uniform(0.02, 0.05, 40))
+    paths = np.cumsum(rng.normal(0, 4, (3, 40, 2)), axis=1)
+    ids = np.array([7, 3, 5])
+    usual, mixed = make_filter(name), make_filter(name)
+    for k in range(40):
+        a = usual.update(ids, paths[:, k], t[k])
+        # the same touches plus one never seen before (from the second frame on)
+        extra_id = np.array([100 + k]) if k else np.zeros(0, np.int64)
+        extra_xy = rng.normal(0, 50, (len(extra_id), 2))
+        b = mixed.update(np.concatenate([extra_id, ids]), np.vstack([extra_xy, paths[:, k]]), t[k])
+        np.testing.assert_array_equal(b[len(extra_id):], a)
+        if k % 2:
+            mixed.drop(extra_id)
+
+
+@pytest.mark.parametrize("dtype", [np.int8, np.int32, np.uint16, np.uint64])
+def test_any_integer_ids(dtype):
+    f = make_filter("adaptive")
+    out = f.update(np.array([3, 1], dtype), np.array([[1.0, 2.0], [3.0, 4.0]]), 0.0)
+    np.testing.assert_array_equal(out, [[1.0, 2.0], [3.0, 4.0]])
+    assert f.active_ids == [1, 3]
+
+
 # --- time: repeated and backwards timestamps ---------------------------------------------------
 @pytest.mark.parametrize("name", FILTERS)
 @pytest.mark.parametrize("bad_dt", [0.0, -0.02])

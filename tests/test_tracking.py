@@ -1,8 +1,11 @@
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
+from depthtouch import tracking
 from depthtouch.config import TouchPointConfig, TrackingConfig
-from depthtouch.tracking import Tracker
+from depthtouch.tracking import Track, Tracker
 from depthtouch.types import TouchPoints
 
 
@@ -208,3 +211,63 @@ def test_a_large_region_alone_is_not_a_merge():
     run(tr, _STILL_PAIR)
     out = run(tr, [pts_area((100, 100, 5, 120))])
     assert sorted(out[0]) == [(1, "move"), (2, "up")]
+
+
+# --- the cost matrix: floats for a few touches, arrays for many, the same numbers ---------------
+@settings(max_examples=60, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), n_t=st.integers(1, 8), n_p=st.integers(1, 8),
+       scaled=st.booleans())
+def test_cost_in_floats_equals_cost_in_arrays(seed, n_t, n_p, scaled):
+    """Both ways give the same doubles, also for points a rounding error off the gate."""
+    rng = np.random.default_rng(seed)
+    tr = Tracker(TrackingConfig(), scale_mm_per_px=1.3 if scaled else None)
+    gate = tr.gate
+    tr.tracks = [
+        Track(
+            (0.0, 0.0), tuple(rng.uniform(0, 200, 2).tolist()), 5.0, 50,
+            missing=int(rng.integers(0, 3)), active=bool(rng.random() < 0.7),
+            vel=tuple(rng.normal(0, 5, 2).tolist()) if rng.random() < 0.7 else (0.0, 0.0),
+        )
+        for _ in range(n_t)
+    ]
+    pos = []
+    for _ in range(n_p):
+        t = tr.tracks[int(rng.integers(n_t))]
+        angle = rng.choice([rng.uniform(0, 2 * np.pi), 0.0, np.pi / 2, np.pi, 1.5 * np.pi])
+        # at the gate (give or take an ulp or a few), off one axis, or anywhere
+        r = gate * (1 + rng.choice([0.0, 1e-16, -1e-16, 1e-7, -1e-7, 3e-6])) * rng.choice([1, 1, 0.5, 3])
+        pos.append((t.pos[0] + r * np.cos(angle), t.pos[1] + r * np.sin(angle))
+                   if rng.random() < 0.8 else tuple(rng.uniform(-50, 250, 2).tolist()))
+    pos = [(float(x), float(y)) for x, y in pos]
+    ok_cont = (rng.random(n_p) < 0.9).tolist()
+    ok_new = (rng.random(n_p) < 0.7).tolist()
+    floats = tr._cost(pos, ok_cont, ok_new)
+    arrays = tr._cost_array(pos, ok_cont, ok_new)
+    assert floats == arrays
+
+
+def _moving_fingers(n: int, frames: int) -> list[TouchPoints]:
+    """n fingers on a grid 30 px apart, drifting (1 mm/px, default gate 40 mm: neighbours are
+    within each other's gate)."""
+    out = []
+    for k in range(frames):
+        xy = [(100 + 30 * (i % 4) + 2 * k + 1.5 * np.sin(k / 3 + i), 100 + 30 * (i // 4) + k)
+              for i in range(n)]
+        out.append(pts(*[(x, y, 5.0) for x, y in xy]))
+    return out
+
+
+@pytest.mark.parametrize("n", [3, 12])
+def test_many_touches_same_tracks_with_floats_or_arrays(n, monkeypatch):
+    """12 touches take the array cost matrix (3 the float one); forcing the other way changes
+    nothing, and every finger keeps its id."""
+    frames = _moving_fingers(n, 20)
+
+    def replay() -> list[list[tuple[int, str, tuple[float, float]]]]:
+        tr = Tracker(TrackingConfig(), scale_mm_per_px=1.0)
+        return [[(u.track.id, u.state, u.track.xy_px) for u in tr.update(f)] for f in frames]
+
+    default = replay()
+    monkeypatch.setattr(tracking, "_PY_COST_MAX", 0 if n < 10 else 10**6)
+    assert replay() == default
+    assert {i for f in default for i, _, _ in f} == set(range(1, n + 1))

@@ -81,22 +81,38 @@ def smoothing_factor(dt_s: np.ndarray, cutoff_hz: np.ndarray | float) -> np.ndar
 
     This is the 1€ filter's ``alpha``; dt_s > 0 gives a weight in (0, 1).
     """
-    tau_s = 1.0 / (2.0 * np.pi * np.asarray(cutoff_hz, dtype=np.float64))
+    if isinstance(cutoff_hz, (int, float)):
+        # one cutoff: tau as a float (the same double the array expression gives), one call less
+        tau_s: np.ndarray | float = 1.0 / (2.0 * math.pi * float(cutoff_hz))
+    else:
+        tau_s = 1.0 / (2.0 * np.pi * np.asarray(cutoff_hz, dtype=np.float64))
     return np.asarray(dt_s / (dt_s + tau_s), dtype=np.float64)
 
 
 class FilterBase:
     """Per-id state bookkeeping shared by all filters; subclasses supply the maths.
 
-    State lives in arrays with one row per active touch: ``_out`` (last output, mm), ``_t`` (time
-    of the last update, s) and the named arrays of ``_FIELDS``. ``_init`` fills the rows of new
-    touches from their first measurement; ``_step`` advances rows whose dt > 0 and returns their
-    output.
+    State lives in one array with a row per active touch: the columns are the last output (mm,
+    ``_out``), the time of the last update (s, ``_t``) and the named fields of ``_FIELDS``
+    (``_state[name]``; each field is a vector per touch), all views of ``_buf``. ``_init`` fills
+    the rows of new touches from their first measurement; ``_step`` advances a copy of the rows
+    whose dt > 0 (their fields in place) and returns their output.
     """
 
     name: ClassVar[str] = ""
     PARAMS: ClassVar[Mapping[str, Param]] = {}
-    _FIELDS: ClassVar[Mapping[str, tuple[int, ...]]] = {}
+    _FIELDS: ClassVar[Mapping[str, tuple[int]]] = {}
+    # columns of the state rows: output x, y, time, then the fields in order (see __init_subclass__)
+    _COLS: ClassVar[Mapping[str, slice]] = {}
+    _WIDTH: ClassVar[int] = 3
+
+    def __init_subclass__(cls, **kwargs: object) -> None:
+        super().__init_subclass__(**kwargs)
+        cols, start = {}, 3
+        for k, (n,) in cls._FIELDS.items():
+            cols[k] = slice(start, start + n)
+            start += n
+        cls._COLS, cls._WIDTH = cols, start
 
     def __init__(self, **params: float) -> None:
         unknown = sorted(set(params) - set(self.PARAMS))
@@ -116,9 +132,13 @@ class FilterBase:
         """Forget every touch."""
         self._rows: dict[int, int] = {}
         self._free: list[int] = []
-        self._out = np.zeros((0, 2))
-        self._t = np.zeros(0)
-        self._state = {k: np.zeros((0, *shape)) for k, shape in self._FIELDS.items()}
+        self._alloc(np.zeros((0, self._WIDTH)))
+
+    def _alloc(self, buf: np.ndarray) -> None:
+        self._buf = buf
+        self._out = buf[:, 0:2]
+        self._t = buf[:, 2]
+        self._state = {k: buf[:, c] for k, c in self._COLS.items()}
 
     def drop(self, ids: np.ndarray) -> None:
         """Forget these ids (a touch went ``up``); unknown ids are ignored."""
@@ -133,16 +153,10 @@ class FilterBase:
         return sorted(self._rows)
 
     def _grow(self, need: int) -> None:
-        cap = self._t.shape[0]
+        cap = self._buf.shape[0]
         new_cap = max(8, 2 * cap, cap + need)
         self._free.extend(range(new_cap - 1, cap - 1, -1))
-
-        def pad(a: np.ndarray) -> np.ndarray:
-            return np.concatenate([a, np.zeros((new_cap - cap, *a.shape[1:]))])
-
-        self._out = pad(self._out)
-        self._t = pad(self._t)
-        self._state = {k: pad(a) for k, a in self._state.items()}
+        self._alloc(np.concatenate([self._buf, np.zeros((new_cap - cap, self._WIDTH))]))
 
     def _lookup(self, ids: list[int]) -> tuple[np.ndarray, np.ndarray]:
         is_new = np.array([i not in self._rows for i in ids], dtype=bool)
@@ -164,23 +178,41 @@ class FilterBase:
         without state starts fresh with its measurement; ids not passed keep their state.
         Inputs are never mutated.
         """
+        # a handful of touches per frame: checks on plain Python values cost less than array
+        # calls (each ~1 us) and raise the same errors
         id_arr = np.asarray(ids)
         xy = np.asarray(xy_mm, dtype=np.float64)
-        if id_arr.ndim != 1 or (id_arr.size and not np.issubdtype(id_arr.dtype, np.integer)):
+        int_kind = id_arr.dtype.kind in "iu"
+        if id_arr.ndim != 1 or (
+            id_arr.size and not (int_kind or np.issubdtype(id_arr.dtype, np.integer))
+        ):
             raise ValueError(f"ids: expected integer shape (_,), got {id_arr.dtype} {id_arr.shape}")
         if xy.ndim != 2 or xy.shape[1] != 2 or xy.shape[0] != id_arr.shape[0]:
             raise ValueError(f"xy_mm: expected shape ({id_arr.shape[0]}, 2), got {xy.shape}")
         t = float(timestamp_s)
         if not math.isfinite(t):
             raise ValueError(f"timestamp_s must be finite, got {timestamp_s!r}")
-        if not np.isfinite(xy).all():
+        if not all(map(math.isfinite, xy.ravel().tolist())):
             raise ValueError("xy_mm must be finite; leave a missed touch out of the frame instead")
-        id_list = [int(i) for i in id_arr.tolist()]
-        if len(set(id_list)) != len(id_list):
+        id_list = id_arr.tolist() if int_kind else [int(i) for i in id_arr.tolist()]
+        id_set = set(id_list)
+        if len(id_set) != len(id_list):
             raise ValueError(f"ids must be distinct within a frame, got {id_list}")
         if not id_list:
             return np.zeros((0, 2))
 
+        known = self._rows
+        if id_set <= known.keys():
+            # the usual frame: every touch known and time advanced: one gather, one scatter
+            rows = np.array([known[i] for i in id_list], dtype=np.intp)
+            s = self._buf.take(rows, axis=0)
+            dt_s = t - s[:, 2]
+            if min(dt_s.tolist()) > 0.0:
+                out = self._step(s, xy, dt_s)
+                s[:, 0:2] = out
+                s[:, 2] = t
+                self._buf[rows] = s
+                return out
         rows, is_new = self._lookup(id_list)
         if is_new.any():
             new_rows = rows[is_new]
@@ -192,15 +224,20 @@ class FilterBase:
         moved = dt_s > 0.0  # dt <= 0: no time elapsed, keep the previous output and state
         if moved.any():
             step_rows = old_rows[moved]
-            self._out[step_rows] = self._step(step_rows, old_xy[moved], dt_s[moved])
-            self._t[step_rows] = t
+            s = self._buf[step_rows]
+            s[:, 0:2] = self._step(s, old_xy[moved], dt_s[moved])
+            s[:, 2] = t
+            self._buf[step_rows] = s
         return self._out[rows].copy()
 
     def _init(self, rows: np.ndarray, xy: np.ndarray) -> None:
         for a in self._state.values():
             a[rows] = 0.0
 
-    def _step(self, rows: np.ndarray, xy: np.ndarray, dt_s: np.ndarray) -> np.ndarray:
+    def _step(self, s: np.ndarray, xy: np.ndarray, dt_s: np.ndarray) -> np.ndarray:
+        """Advance the state rows ``s`` (a copy: output, time, fields) by dt_s > 0 to the
+        measurements xy; update the fields of ``s`` in place, return the new outputs (a new
+        array, not a view of ``xy``)."""
         raise NotImplementedError  # pragma: no cover - every filter defines it
 
     def __repr__(self) -> str:
@@ -213,7 +250,7 @@ class NoFilter(FilterBase):
 
     name = "none"
 
-    def _step(self, rows: np.ndarray, xy: np.ndarray, dt_s: np.ndarray) -> np.ndarray:
+    def _step(self, s: np.ndarray, xy: np.ndarray, dt_s: np.ndarray) -> np.ndarray:
         return xy.copy()
 
 
@@ -229,9 +266,9 @@ class LowPassFilter(FilterBase):
     name = "lowpass"
     PARAMS = {"cutoff_hz": Param(5.0, 0.0, 1000.0)}
 
-    def _step(self, rows: np.ndarray, xy: np.ndarray, dt_s: np.ndarray) -> np.ndarray:
+    def _step(self, s: np.ndarray, xy: np.ndarray, dt_s: np.ndarray) -> np.ndarray:
         a = smoothing_factor(dt_s, self.params["cutoff_hz"])[:, None]
-        prev = self._out[rows]
+        prev = s[:, 0:2]
         return prev + a * (xy - prev)
 
 
@@ -264,25 +301,26 @@ class KalmanFilter(FilterBase):
             self.params["initial_speed_mm_s"] ** 2,
         ]
 
-    def _step(self, rows: np.ndarray, xy: np.ndarray, dt_s: np.ndarray) -> np.ndarray:
+    def _step(self, s: np.ndarray, xy: np.ndarray, dt_s: np.ndarray) -> np.ndarray:
         q = self.params["process_noise_mm_s2"] ** 2
         r = self.params["measurement_noise_mm"] ** 2
-        v = self._state["v"][rows]
-        pp, pv, vv = self._state["p"][rows].T
+        v_col, p_col = self._COLS["v"], self._COLS["p"]
+        v = s[:, v_col]
+        pp, pv, vv = s[:, p_col].T
         # predict: F = [[1, dt], [0, 1]], Q = q·[[dt⁴/4, dt³/2], [dt³/2, dt²]] (discrete white
         # acceleration)
         dt = dt_s
-        pred = self._out[rows] + v * dt[:, None]
+        pred = s[:, 0:2] + v * dt[:, None]
         pp = pp + 2.0 * dt * pv + dt * dt * vv + q * dt**4 / 4.0
         pv = pv + dt * vv + q * dt**3 / 2.0
         vv = vv + q * dt * dt
         # correct
-        s = pp + r
-        k_pos, k_vel = pp / s, pv / s
+        s_mm2 = pp + r  # innovation variance
+        k_pos, k_vel = pp / s_mm2, pv / s_mm2
         innov = xy - pred
         out = pred + k_pos[:, None] * innov
-        self._state["v"][rows] = v + k_vel[:, None] * innov
-        self._state["p"][rows] = np.stack(
+        s[:, v_col] = v + k_vel[:, None] * innov
+        s[:, p_col] = np.stack(
             [(1.0 - k_pos) * pp, (1.0 - k_pos) * pv, vv - k_vel * pv], axis=1
         )
         return out
@@ -316,15 +354,16 @@ class AdaptiveFilter(FilterBase):
     }
     _FIELDS = {"v": (2,)}
 
-    def _step(self, rows: np.ndarray, xy: np.ndarray, dt_s: np.ndarray) -> np.ndarray:
-        v = self._state["v"][rows]
-        pred = self._out[rows] + v * dt_s[:, None]
+    def _step(self, s: np.ndarray, xy: np.ndarray, dt_s: np.ndarray) -> np.ndarray:
+        v_col = self._COLS["v"]
+        v = s[:, v_col]
+        pred = s[:, 0:2] + v * dt_s[:, None]
         innov = xy - pred
         d_mm = np.hypot(innov[:, 0], innov[:, 1])
         w0 = smoothing_factor(dt_s, self.params["min_cutoff_hz"])
         w = w0 + (1.0 - w0) * (1.0 - np.exp2(-((d_mm / self.params["half_weight_mm"]) ** 2)))
         beta = w * w / (2.0 - w)
-        self._state["v"][rows] = v + (beta / dt_s)[:, None] * innov
+        s[:, v_col] = v + (beta / dt_s)[:, None] * innov
         return pred + w[:, None] * innov
 
 
@@ -352,13 +391,14 @@ class OneEuroFilter(FilterBase):
     }
     _FIELDS = {"dx": (2,)}  # smoothed speed per axis, mm/s
 
-    def _step(self, rows: np.ndarray, xy: np.ndarray, dt_s: np.ndarray) -> np.ndarray:
-        prev = self._out[rows]
+    def _step(self, s: np.ndarray, xy: np.ndarray, dt_s: np.ndarray) -> np.ndarray:
+        dx_col = self._COLS["dx"]
+        prev = s[:, 0:2]
         dt = dt_s[:, None]
         speed = (xy - prev) / dt
-        edx = self._state["dx"][rows]
+        edx = s[:, dx_col]
         edx = edx + smoothing_factor(dt, self.params["d_cutoff_hz"]) * (speed - edx)
-        self._state["dx"][rows] = edx
+        s[:, dx_col] = edx
         cutoff = self.params["min_cutoff_hz"] + self.params["beta_per_mm"] * np.abs(edx)
         return prev + smoothing_factor(dt, cutoff) * (xy - prev)
 

@@ -245,29 +245,34 @@ class Pipeline:
     def _events(self, frame: Frame, updates: list[TrackUpdate]) -> list[TouchEvent]:
         if not updates:
             return []
+        # a handful of touches: plain floats cost less than array calls here (same arithmetic)
         scale = self._tracker.scale_mm_per_px or 1.0
-        measured = [u for u in updates if u.measured]
-        filtered: dict[int, np.ndarray] = {}
+        measured = [u.track for u in updates if u.measured]
+        filtered: list[list[float]] = []  # mm, in the order of the measured updates
         if measured:
-            ids = np.array([u.track.id for u in measured], np.int64)
-            xy = np.array([u.track.xy_px for u in measured], np.float64) * scale
-            out = self._filter.update(ids, xy, frame.timestamp_s) / scale
-            filtered = dict(zip(ids.tolist(), out))
-        ended = np.array([u.track.id for u in updates if u.state == "up"], np.int64)
-        if ended.size:
-            self._filter.drop(ended)
+            ids = np.array([t.id for t in measured], np.int64)
+            xy = np.array([c * scale for t in measured for c in t.xy_px], np.float64).reshape(-1, 2)
+            filtered = self._filter.update(ids, xy, frame.timestamp_s).tolist()
+        ended = [u.track.id for u in updates if u.state == "up"]
+        if ended:
+            self._filter.drop(np.array(ended, np.int64))
         events: list[TouchEvent] = []
+        index, t_s = frame.index, frame.timestamp_s
+        isfinite = math.isfinite
+        filtered_it = iter(filtered)
         for u in updates:
             t = u.track
-            got = filtered.get(t.id)
-            # grace frames and up repeat the last filtered position
-            xy = got if got is not None else (t.out_xy if t.out_xy is not None else t.xy_px)
-            t.out_xy = xy
+            if u.measured:
+                x_mm, y_mm = next(filtered_it)
+                xy_px = (x_mm / scale, y_mm / scale)
+            else:  # grace frames and up repeat the last filtered position
+                xy_px = t.out_xy if t.out_xy is not None else t.xy_px
+            t.out_xy = xy_px
             extra: dict[str, Any] = {"area": t.area_px}
-            if math.isfinite(t.height_mm):
+            if isfinite(t.height_mm):
                 extra["h"] = round(t.height_mm, 2)
-            events.append(TouchEvent(frame.index, frame.timestamp_s, t.id, u.state,
-                                     float(xy[0]), float(xy[1]), extra))
+            events.append(TouchEvent(index, t_s, t.id, u.state, float(xy_px[0]), float(xy_px[1]),
+                                     extra))
         self._add_coordinates(events)
         return events
 
@@ -277,17 +282,21 @@ class Pipeline:
             return
         if surf.K is not None:
             # a handful of touches: plain floats cost less than array calls here
-            K = surf.K
-            fx, fy, cx, cy = float(K[0, 0]), float(K[1, 1]), float(K[0, 2]), float(K[1, 2])
+            (fx, _, cx), (_, fy, cy), _ = surf.K.tolist()
             dm = surf.depth_mm
-            h, w = dm.shape
+            w1, h1 = dm.shape[1] - 1, dm.shape[0] - 1
+            at = dm.item
             for e in events:
-                ix = min(max(int(round(e.x)), 0), w - 1)
-                iy = min(max(int(round(e.y)), 0), h - 1)
-                z = float(dm[iy, ix])
+                x, y = e.x, e.y
+                ix, iy = round(x), round(y)  # nearest pixel, clamped to the image
+                ix = 0 if ix < 0 else (w1 if ix > w1 else ix)
+                iy = 0 if iy < 0 else (h1 if iy > h1 else iy)
+                z = float(at(iy, ix))
                 if z > 0:
-                    e.extra.update(X=round((e.x - cx) * z / fx, 2), Y=round((e.y - cy) * z / fy, 2),
-                                   Z=round(z, 2))
+                    extra = e.extra
+                    extra["X"] = round((x - cx) * z / fx, 2)
+                    extra["Y"] = round((y - cy) * z / fy, 2)
+                    extra["Z"] = round(z, 2)
         if self.calibration is not None:
             xy = np.array([[e.x, e.y] for e in events], np.float64)
             sxy = self.calibration.to_screen(xy)

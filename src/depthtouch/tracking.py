@@ -14,7 +14,9 @@ limit does not flicker. Ids are never reused within a run.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 import numpy as np
 from scipy.optimize import linear_sum_assignment
@@ -23,48 +25,73 @@ from .config import TouchPointConfig, TrackingConfig
 from .types import TouchPoints, TouchState
 
 _BIG = 1e9
+# cost matrices up to this many entries are built with floats, larger ones with arrays (the
+# break-even on one core: about 10 tracks x 10 points when they are close together)
+_PY_COST_MAX = 100
+
+XY = tuple[float, float]
 
 
-@dataclass
+@dataclass(slots=True)
 class Track:
-    """State of one tracked contact (pending until it goes down; id -1 meanwhile)."""
+    """State of one tracked contact (pending until it goes down; id -1 meanwhile).
 
-    xy_px: np.ndarray
-    pos: np.ndarray
+    Positions are pairs of plain floats: a frame updates a handful of tracks, and a numpy call on
+    a 2-vector costs as much as twenty float operations. xy_px: image px; pos: xy_px times the
+    tracker's scale (mm when known); vel: per frame, in the units of pos.
+    """
+
+    xy_px: XY
+    pos: XY
     height_mm: float
     area_px: int
     id: int = -1
     seen: int = 1
     missing: int = 0
     active: bool = False
-    vel: np.ndarray = field(default_factory=lambda: np.zeros(2))
-    out_xy: np.ndarray | None = None  # last reported (filtered) position
+    vel: XY = (0.0, 0.0)
+    out_xy: XY | None = None  # last reported (filtered) position, px
     hand_at_border: bool = True
     merged: int = 0  # consecutive frames hidden in a neighbour's region
 
-    def predicted(self) -> np.ndarray:
+    def predicted(self) -> XY:
         """Where the contact should be this frame (constant velocity per frame)."""
-        return self.pos + self.vel * (1 + self.missing)
+        k = 1 + self.missing
+        return (self.pos[0] + self.vel[0] * k, self.pos[1] + self.vel[1] * k)
 
 
-def _assign(cost: np.ndarray, rows: np.ndarray, cols: np.ndarray) -> dict[int, int]:
-    """Optimal assignment of tracks ``rows`` to points ``cols`` on ``cost`` (pairs < _BIG)."""
-    if rows.size == 0 or cols.size == 0:
+def _nearest(row: list[float]) -> int:
+    """Index of the smallest entry, the first of equal ones (as ``np.argmin``)."""
+    return row.index(min(row))
+
+
+def _assign(
+    cost: list[list[float]], rows: list[int], cols: list[int], nearest: list[int]
+) -> dict[int, int]:
+    """Optimal assignment of tracks ``rows`` to points ``cols`` (increasing) on ``cost`` (pairs
+    < _BIG); ``nearest``: :func:`_nearest` of every row of ``cost``."""
+    if not rows or not cols:
         return {}
-    sub = cost[np.ix_(rows, cols)]
-    best = sub.argmin(axis=1).tolist()
+    if len(cols) == len(cost[0]):  # all the points
+        sub = [cost[r] for r in rows]
+        best = [nearest[r] for r in rows]
+    else:
+        sub = [[cost[r][c] for c in cols] for r in rows]
+        best = [_nearest(row) for row in sub]
     if len(set(best)) == len(best):
         # every track's nearest point is its own: that is the optimum (no assignment can cost
         # less than each track's own minimum), found without the solver
-        return {int(rows[a]): int(cols[b]) for a, b in enumerate(best) if sub[a, b] < _BIG}
-    r, c = linear_sum_assignment(sub)
-    ok = sub[r, c] < _BIG
-    return {int(rows[a]): int(cols[b]) for a, b in zip(r[ok], c[ok], strict=True)}
+        return {r: cols[b] for r, b, row in zip(rows, best, sub, strict=True) if row[b] < _BIG}
+    ri, ci = linear_sum_assignment(np.array(sub))
+    return {rows[a]: cols[b] for a, b in zip(ri.tolist(), ci.tolist(), strict=True)
+            if sub[a][b] < _BIG}
 
 
-@dataclass(frozen=True)
-class TrackUpdate:
-    """What happened to a track this frame; ``measured`` is False during grace and on up."""
+class TrackUpdate(NamedTuple):
+    """What happened to a track this frame; ``measured`` is False during grace and on up.
+
+    (A named tuple: immutable like a frozen dataclass, at half the cost to make.)
+    """
 
     track: Track
     state: TouchState
@@ -101,61 +128,65 @@ class Tracker:
 
     def update(self, points: TouchPoints) -> list[TrackUpdate]:
         """Advance one frame with this frame's touch points; returns the reported tracks."""
-        if not self.tracks and len(points) == 0:
+        tracks = self.tracks
+        n_t, n_p = len(tracks), len(points)
+        if not n_t and not n_p:
             return []
+        # a handful of points: plain floats cost less than array calls here (same arithmetic)
         scale = self.scale_mm_per_px if self.scale_mm_per_px is not None else 1.0
-        pos = points.xy_px * scale
-        h = points.height_mm
-        border = ([True] * len(points) if points.hand_at_border is None
-                  else [bool(b) for b in points.hand_at_border])
+        xy: list[XY] = list(map(tuple, points.xy_px.tolist()))
+        pos: list[XY] = [(x * scale, y * scale) for x, y in xy]
+        h = points.height_mm.tolist()
+        area = points.area_px.tolist()
+        hb = points.hand_at_border
+        border: list[bool] = ([True] * n_p if hb is None else hb.tolist() if hb.dtype.kind == "b"
+                              else [bool(b) for b in hb.tolist()])
         # (an unknown height, NaN, compares False: never a touch)
-        ok_cont = h <= self.touch.touch_off_mm
-        ok_new = h <= self.touch.touch_on_mm
-        n_t, n_p = len(self.tracks), len(points)
+        off, on = self.touch.touch_off_mm, self.touch.touch_on_mm
+        ok_cont = [v <= off for v in h]
+        ok_new = [v <= on for v in h]
         matched_t: dict[int, int] = {}
         groups: dict[int, list[int]] = {}
         if n_t and n_p:
-            # distance to where the contact should be, or to where it was: a sharp turn must
-            # not be lost to a prediction that overshoots
-            last = np.array([t.pos for t in self.tracks])
-            pred = last + np.array([t.vel * (1 + t.missing) for t in self.tracks])
-            dp, dl = pred[:, None, :] - pos[None, :, :], last[:, None, :] - pos[None, :, :]
-            dist = np.sqrt(np.minimum((dp * dp).sum(axis=2), (dl * dl).sum(axis=2)))
-            is_active = np.array([t.active for t in self.tracks])
-            allowed = np.where(is_active[:, None], ok_cont[None, :], ok_new[None, :])
-            cost = np.where(allowed & (dist <= self.gate), dist, _BIG)
+            cost = self._cost(pos, ok_cont, ok_new)
             # Contacts that are down are served first, pending ones get what is left: optimal
             # assignment maximises the number of pairs, so in one joint assignment a noise blip
             # or a finger just arriving next to a contact could take the contact's point and
             # push it onto a farther one (or out, to come back with a new id).
-            act = np.flatnonzero(is_active)
-            matched_t = _assign(cost, act, np.arange(n_p))
-            groups = self._merge_groups(cost, matched_t, act, points.area_px)
+            nearest = [_nearest(row) for row in cost]
+            act = [i for i, t in enumerate(tracks) if t.active]
+            matched_t = _assign(cost, act, list(range(n_p)), nearest)
+            groups = self._merge_groups(cost, nearest, matched_t, act, area)
             for members in groups.values():
                 for i in members:
                     matched_t.pop(i, None)
-            if act.size < n_t:
-                free = np.ones(n_p, bool)
-                free[[*matched_t.values(), *groups]] = False
-                matched_t.update(_assign(cost, np.flatnonzero(~is_active), np.flatnonzero(free)))
+            if len(act) < n_t:
+                taken = {*matched_t.values(), *groups}
+                pending = [i for i, t in enumerate(tracks) if not t.active]
+                free = [j for j in range(n_p) if j not in taken]
+                matched_t.update(_assign(cost, pending, free, nearest))
         out: list[TrackUpdate] = []
         keep: list[Track] = []
         used = set(matched_t.values()) | set(groups)
-        shift: dict[int, tuple[int, np.ndarray]] = {}
+        shift: dict[int, tuple[int, XY]] = {}
         for k, members in groups.items():
-            centre = np.mean([self.tracks[i].pos for i in members], axis=0)
+            cx, cy = np.mean([tracks[i].pos for i in members], axis=0).tolist()
+            step = (pos[k][0] - cx, pos[k][1] - cy)
             for i in members:
-                shift[i] = (k, pos[k] - centre)
-        for i, t in enumerate(self.tracks):
+                shift[i] = (k, step)
+        down_frames = self.config.down_frames
+        for i, t in enumerate(tracks):
             j = matched_t.get(i)
             if i in shift:
                 # fingertips side by side in one region: its point is where they are together;
                 # each keeps its place in the pair and moves with it (no id jumps to the other)
-                k, step = shift[i]
-                v = step / (1 + t.missing)
-                t.vel = 0.5 * t.vel + 0.5 * v
-                t.pos = t.pos + step
-                t.xy_px = t.pos / scale
+                k, (sx, sy) = shift[i]
+                m = 1 + t.missing
+                (vx, vy), (ox, oy) = t.vel, t.pos
+                t.vel = (0.5 * vx + 0.5 * (sx / m), 0.5 * vy + 0.5 * (sy / m))
+                px, py = ox + sx, oy + sy
+                t.pos = (px, py)
+                t.xy_px = (px / scale, py / scale)
                 t.height_mm = float(h[k])
                 t.hand_at_border = border[k]
                 t.seen += 1
@@ -165,19 +196,20 @@ class Tracker:
                 keep.append(t)
                 continue
             if j is not None:
-                step = (pos[j] - t.pos) / (1 + t.missing)
+                m = 1 + t.missing
+                (vx, vy), (ox, oy), (px, py) = t.vel, t.pos, pos[j]
                 # smoothed velocity, from rest: a noisy touch point (or, just after touch-down, a
                 # neighbour's tip arriving in the region) must not throw the prediction off
-                t.vel = 0.5 * t.vel + 0.5 * step
-                t.xy_px, t.pos = points.xy_px[j].copy(), pos[j].copy()
-                t.height_mm, t.area_px = float(h[j]), int(points.area_px[j])
+                t.vel = (0.5 * vx + 0.5 * ((px - ox) / m), 0.5 * vy + 0.5 * ((py - oy) / m))
+                t.xy_px, t.pos = xy[j], pos[j]
+                t.height_mm, t.area_px = float(h[j]), int(area[j])
                 t.hand_at_border = border[j]
                 t.seen += 1
                 t.missing = 0
                 t.merged = 0
                 if t.active:
                     out.append(TrackUpdate(t, "move", True))
-                elif t.seen >= self.config.down_frames:
+                elif t.seen >= down_frames:
                     self._activate(t)
                     out.append(TrackUpdate(t, "down", True))
                 keep.append(t)
@@ -199,17 +231,69 @@ class Tracker:
         for j in range(n_p):
             if j in used or not ok_new[j]:
                 continue
-            t = Track(points.xy_px[j].copy(), pos[j].copy(), float(h[j]), int(points.area_px[j]),
-                      hand_at_border=border[j])
-            if self.config.down_frames <= 1:
+            t = Track(xy[j], pos[j], float(h[j]), int(area[j]), hand_at_border=border[j])
+            if down_frames <= 1:
                 self._activate(t)
                 out.append(TrackUpdate(t, "down", True))
             keep.append(t)
         self.tracks = keep
         return out
 
+    def _cost(self, pos: list[XY], ok_cont: list[bool], ok_new: list[bool]) -> list[list[float]]:
+        """Gated distance of each track to each point (_BIG where it may not take the point).
+
+        The distance is to where the contact should be, or to where it was, whichever is nearer:
+        a sharp turn must not be lost to a prediction that overshoots. A contact down may take a
+        point below touch_off_mm, a pending one only below touch_on_mm.
+        """
+        if len(self.tracks) * len(pos) > _PY_COST_MAX:
+            return self._cost_array(pos, ok_cont, ok_new)
+        gate = self.gate
+        # a point farther than this on one axis, from both the prediction and the last position,
+        # is beyond the gate: the margin keeps that exact through the rounding of the distance
+        far = gate * (1.0 + 1e-6)
+        sqrt = math.sqrt
+        cost: list[list[float]] = []
+        for t in self.tracks:
+            lx, ly = t.pos
+            k = 1 + t.missing
+            px, py = lx + t.vel[0] * k, ly + t.vel[1] * k
+            row: list[float] = []
+            for (x, y), ok in zip(pos, ok_cont if t.active else ok_new, strict=True):
+                ax, bx = px - x, lx - x
+                ay, by = py - y, ly - y
+                if (not ok or (ax > far and bx > far) or (ax < -far and bx < -far)
+                        or (ay > far and by > far) or (ay < -far and by < -far)):
+                    row.append(_BIG)
+                    continue
+                a, b = ax * ax + ay * ay, bx * bx + by * by
+                d = sqrt(a if a <= b else b)
+                row.append(d if d <= gate else _BIG)
+            cost.append(row)
+        return cost
+
+    def _cost_array(
+        self, pos: list[XY], ok_cont: list[bool], ok_new: list[bool]
+    ) -> list[list[float]]:
+        """:meth:`_cost` in array operations: the same numbers, faster for many touches."""
+        last = np.array([t.pos for t in self.tracks])
+        pred = last + np.array([(t.vel[0] * (1 + t.missing), t.vel[1] * (1 + t.missing))
+                                for t in self.tracks])
+        p = np.array(pos)
+        dp, dl = pred[:, None, :] - p[None, :, :], last[:, None, :] - p[None, :, :]
+        dist = np.sqrt(np.minimum((dp * dp).sum(axis=2), (dl * dl).sum(axis=2)))
+        is_active = np.array([t.active for t in self.tracks])
+        allowed = np.where(is_active[:, None], np.array(ok_cont)[None, :], np.array(ok_new)[None, :])
+        cost: list[list[float]] = np.where(allowed & (dist <= self.gate), dist, _BIG).tolist()
+        return cost
+
     def _merge_groups(
-        self, cost: np.ndarray, matched_t: dict[int, int], act: np.ndarray, area_px: np.ndarray
+        self,
+        cost: list[list[float]],
+        nearest: list[int],
+        matched_t: dict[int, int],
+        act: list[int],
+        area_px: list[int],
     ) -> dict[int, list[int]]:
         """Points whose region holds the fingertips of several contacts side by side -> them.
 
@@ -220,17 +304,18 @@ class Tracker:
         finger that only moved keeps its area).
         """
         ratio = self.config.merge_area_ratio
-        if ratio <= 0 or act.size < 2 or not matched_t:
+        if ratio <= 0 or len(act) < 2 or not matched_t:
             return {}
         owner = {j: i for i, j in matched_t.items()}
-        nearest = np.argmin(cost[act], axis=1)
+        near = self.merge_near
         cand: dict[int, list[int]] = {}
-        for b, k in zip(act.tolist(), nearest.tolist(), strict=True):
+        for b in act:
+            row, k = cost[b], nearest[b]
             a = owner.get(k)
             j = matched_t.get(b)
-            if a is None or a == b or cost[b, k] > self.merge_near:
+            if a is None or a == b or row[k] > near:
                 continue
-            if j is not None and cost[b, j] <= cost[b, k]:
+            if j is not None and row[j] <= row[k]:
                 continue
             cand.setdefault(k, [a]).append(b)
         groups: dict[int, list[int]] = {}
@@ -244,12 +329,15 @@ class Tracker:
                 grouped.update(members)
         return groups
 
-    def _merged(self, t: Track, pos: np.ndarray, used: set[int]) -> bool:
+    def _merged(self, t: Track, pos: list[XY], used: set[int]) -> bool:
         """Is a point matched this frame within a finger width of this (unmatched) track?"""
-        if not used:
-            return False
-        d = np.linalg.norm(pos[list(used)] - t.pos, axis=1)
-        return bool((d <= self.merge_near).any())
+        near = self.merge_near
+        tx, ty = t.pos
+        for j in used:
+            dx, dy = pos[j][0] - tx, pos[j][1] - ty
+            if math.sqrt(dx * dx + dy * dy) <= near:
+                return True
+        return False
 
     def _activate(self, t: Track) -> None:
         t.active = True
