@@ -13,7 +13,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from .regions import HAND_SCALE, BandBounds, label_runs
+from .regions import HAND_SCALE, BandBounds, label_runs, row_runs
 
 _S = HAND_SCALE  # a compile-time constant in the kernels below
 _C0 = _S // 2 - 1 if _S % 2 == 0 else _S // 2  # the two middle rows / columns of a block
@@ -96,17 +96,7 @@ def _levels(small: np.ndarray, px_mm2: float, min_hand_mm2: float) -> np.ndarray
     runs = np.empty((sh * (sw // 2 + 1), 3), np.int64)
     n = 0
     for j in range(sh):
-        row = small[j]
-        i = 0
-        while i < sw:
-            if row[i]:
-                a = i
-                while i < sw and row[i]:
-                    i += 1
-                runs[n, 0], runs[n, 1], runs[n, 2] = j, a, i
-                n += 1
-            else:
-                i += 1
+        n = row_runs(small[j], j, runs, n)
     comp, n_comp = label_runs(runs[:n])
     area = np.zeros(n_comp, np.int64)
     border = np.zeros(n_comp, np.bool_)
