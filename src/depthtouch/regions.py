@@ -369,16 +369,23 @@ def _dilate_runs(runs: np.ndarray, pad: int, H: int, W: int) -> np.ndarray:
             r += 1
         if k == 0:
             continue
-        order = np.argsort(cand[:k, 0])
-        a, b = cand[order[0], 0], cand[order[0], 1]
+        # by start (insertion sort: a few runs; np.argsort would add seconds of compiling)
+        for t in range(1, k):
+            a, b = cand[t, 0], cand[t, 1]
+            u = t - 1
+            while u >= 0 and cand[u, 0] > a:
+                cand[u + 1, 0], cand[u + 1, 1] = cand[u, 0], cand[u, 1]
+                u -= 1
+            cand[u + 1, 0], cand[u + 1, 1] = a, b
+        a, b = cand[0, 0], cand[0, 1]
         for t in range(1, k + 1):
-            if t < k and cand[order[t], 0] <= b:
-                b = max(b, cand[order[t], 1])
+            if t < k and cand[t, 0] <= b:
+                b = max(b, cand[t, 1])
                 continue
             out[n_out, 0], out[n_out, 1], out[n_out, 2] = y, a, b
             n_out += 1
             if t < k:
-                a, b = cand[order[t], 0], cand[order[t], 1]
+                a, b = cand[t, 0], cand[t, 1]
     return out[:n_out]
 
 

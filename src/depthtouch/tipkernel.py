@@ -266,7 +266,7 @@ def _extremity(finger_x: np.ndarray, finger_y: np.ndarray, hs: np.ndarray, hx: f
     k = int(np.rint(math.pi * r * r / 2.0))
     if n_ahead:
         kk = min(k, n_ahead - 1)
-        s_c = -np.partition(ahead[:n_ahead], kk)[kk]  # the kk-th smallest (no full sort)
+        s_c = -np.sort(ahead[:n_ahead])[kk]  # (np.partition: 9 s more to compile)
     else:
         s_c = sf - r
     x = hx + s_c * ux - l_c * uy
@@ -282,7 +282,7 @@ def _extremity(finger_x: np.ndarray, finger_y: np.ndarray, hs: np.ndarray, hx: f
                 n_h += 1
     if n_h == 0:
         return x, y, np.nan
-    return x, y, np.partition(hv[:n_h], n_h // 4)[n_h // 4]
+    return x, y, np.sort(hv[:n_h])[n_h // 4]
 
 
 @numba.njit(cache=True, nogil=True)
