@@ -112,7 +112,8 @@ def test_regions_of_runs_match_opencv_contours(seed):
     import cv2
 
     import reference_touchpoints as ref
-    from depthtouch.regions import Regions, _any_close, _dilate_runs, _runs_regions
+    from depthtouch.regions import Regions, _any_close
+    from depthtouch.runs import dilate_runs, parts_of_runs
 
     rng = np.random.default_rng(seed)
     n_close = 0
@@ -141,10 +142,10 @@ def test_regions_of_runs_match_opencv_contours(seed):
         if len(runs) == 0:
             assert len(want) == 0
             continue
-        boxes, areas, buf, starts = _runs_regions(runs, H, W, min_area, k // 2)
+        boxes, areas, buf, starts = parts_of_runs(runs, H, W, min_area, k // 2)
         if k > 1 and len(boxes) > 1 and _any_close(boxes):
             n_close += 1
-            boxes, areas, buf, starts = _runs_regions(_dilate_runs(runs, k // 2, H, W), H, W,
+            boxes, areas, buf, starts = parts_of_runs(dilate_runs(runs, k // 2, H, W), H, W,
                                                       min_area, 0)
         _same_regions(Regions(boxes, areas, buf, starts), want)
     assert n_close > 20  # the fallback was exercised

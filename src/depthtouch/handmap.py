@@ -13,7 +13,8 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from .regions import HAND_SCALE, BandBounds, label_runs, row_runs
+from .regions import HAND_SCALE, BandBounds
+from .runs import label_runs, row_runs
 
 _S = HAND_SCALE  # a compile-time constant in the kernels below
 _C0 = _S // 2 - 1 if _S % 2 == 0 else _S // 2  # the two middle rows / columns of a block
@@ -91,7 +92,7 @@ def _raised(depth: np.ndarray, lo: np.ndarray, hi: np.ndarray, hand_valid: np.nd
 def _levels(small: np.ndarray, px_mm2: float, min_hand_mm2: float) -> np.ndarray:
     """Level of each part (8-connected) of a coarse mask: 2 when it touches the image border,
     1 when its area is at least ``min_hand_mm2``, else 0. The parts are labelled by runs (see
-    :func:`regions.label_runs`): a few hundred runs instead of a flood over every pixel."""
+    :func:`runs.label_runs`): a few hundred runs instead of a flood over every pixel."""
     sh, sw = small.shape
     runs = np.empty((sh * (sw // 2 + 1), 3), np.int64)
     n = 0
