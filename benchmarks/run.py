@@ -198,13 +198,16 @@ def _analysis(rows: list) -> list[str]:
     out += [
         "- Without touches the cost is the 3x3 median (OpenCV), one stripe of the surface "
         "adaptation and, every other frame, the 1/8 bump check (compiled), and the band with "
-        "its erosion (one compiled pass that skips rows without band pixels).",
-        "- With touches: the contours of the band (OpenCV) and, per region, its filled mask; the "
-        "1/4 resolution hand map (`handmap.py`) and every region's fingertip (`tipkernel.py`, "
-        "one compiled "
-        "call per frame, a few tens of microseconds for five touches); tracking, the path "
-        "filter and the events are Python and numpy on a handful of touches (~40 us per frame "
-        "plus ~20 us per touch).",
+        "its erosion (one compiled pass over the frame).",
+        "- With touches: the same band pass lists the runs of the eroded band; the runs are "
+        "joined into parts, holes filled and each part dilated back in its own box "
+        "(`regions.py`, `runs.py`: OpenCV's contour regions, exactly); the 1/4 resolution hand "
+        "map (`handmap.py`); every region's fingertip (`tipkernel.py`, one compiled call per "
+        "frame); tracking (plain floats), the path filter (numpy, vectorised over touches) and "
+        "the events.",
+        "- The fingertip kernel reads small windows of six per-pixel surface arrays that the "
+        "full-frame passes (median, band) push out of the cache each frame: the same call takes "
+        "about half the time on warm data. Memory, not arithmetic, is most of what is left.",
         "- Before the compiled kernels (numpy/OpenCV array calls only; the same points, see "
         "`tests/reference_touchpoints.py`) the 5-touch frame took 2.5-3.2 ms: some 40 calls of "
         "a few microseconds per region, Python overhead rather than pixels.",

@@ -170,14 +170,11 @@ def hand_map(high: np.ndarray, depth: np.ndarray, bounds: BandBounds) -> np.ndar
     thin finger does not fall apart at 1/4 resolution.
     """
     h, w = high.shape
-    if bounds.valid_u8 is None:
-        raise ValueError("hand_map: bounds without valid_u8")
     size = (max(1, w // HAND_SCALE), max(1, h // HAND_SCALE))
     # bilinear samples between pixels: a sample is non-zero when any of its 2x2 pixels is high
     small_high = cv2.resize(high, size, interpolation=cv2.INTER_LINEAR)
-    small_valid = bounds.small_valid
-    if small_valid is None or small_valid.shape != (size[1], size[0]):
-        small_valid = cv2.resize(bounds.valid_u8, size, interpolation=cv2.INTER_NEAREST)
+    small_valid = cv2.resize(bounds.valid.astype(np.uint8) * np.uint8(255), size,
+                             interpolation=cv2.INTER_NEAREST)
     small_zero = cv2.bitwise_and(
         cv2.inRange(cv2.resize(depth, size, interpolation=cv2.INTER_NEAREST), 0, 0), small_valid)
     small = cv2.dilate(cv2.bitwise_or(cv2.inRange(small_high, 1, 255), small_zero),
@@ -451,3 +448,10 @@ def _contour_regions(contours: Sequence[np.ndarray], shape: tuple[int, ...], min
     starts = np.cumsum([0] + [m.size for m in masks[:-1]]).astype(np.int64)
     return Regions(np.asarray(boxes, np.int64), np.asarray(areas, np.int64),
                    np.concatenate([m.ravel() for m in masks]), starts)
+
+
+def band_masks(depth: np.ndarray, bounds: BandBounds) -> tuple[np.ndarray, np.ndarray]:
+    """(band, high) uint8 masks (255 = in) of a raw depth frame; zeros are in neither."""
+    band = cv2.inRange(depth, bounds.band_lo, bounds.band_hi)
+    high = cv2.inRange(depth, bounds.high_lo, bounds.high_hi)
+    return band, high

@@ -2,8 +2,9 @@ import numpy as np
 import pytest
 
 from depthtouch.config import RegionConfig
-from depthtouch.regions import band_bounds, band_masks, band_regions, height_mm
+from depthtouch.regions import band_bounds, band_regions, height_mm
 from depthtouch.surface import learn_surface
+from reference_touchpoints import band_masks
 from synth import K_640, Finger, make_recording, render_heights
 
 

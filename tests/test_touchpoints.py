@@ -3,9 +3,10 @@ import pytest
 
 from depthtouch.config import RegionConfig, TouchPointConfig
 from depthtouch.handmap import hand_map
-from depthtouch.regions import band_bounds, band_masks, band_regions
+from depthtouch.regions import band_bounds, band_regions
 from depthtouch.surface import learn_surface
 from depthtouch.touchpoints import find_touch_points
+from reference_touchpoints import band_masks
 from synth import K_640, Finger, make_recording, render_heights
 
 MM_PER_PX = 1000 / 600

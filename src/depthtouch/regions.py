@@ -5,16 +5,16 @@ units (:class:`BandBounds`). Per frame, one compiled pass (:func:`band_regions`)
 of the raw uint16 frame against its bounds, erodes the band by ``open_px`` and lists the runs of
 what is left; the runs are joined into 8-connected parts (:mod:`depthtouch.runs`), each part's
 holes are filled and the part is dilated back within its own box, and parts under S_min pixels
-are dropped. When the band is empty, that is all. These are the regions OpenCV's outer contours of the opened band give
-(``tests/reference_touchpoints.py`` keeps that version; the tests check both agree), at a
-fraction of the cost: a frame's few dozen runs instead of a scan of a whole mask per step.
+are dropped. When the band is empty, that is all. These are the regions that OpenCV's outer
+contours of the opened band give (``tests/reference_touchpoints.py`` keeps that version; the
+tests check both agree), at a fraction of the cost: a frame's few dozen runs instead of a scan
+of a whole mask per step.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 
-import cv2
 import numba
 import numpy as np
 
@@ -51,9 +51,7 @@ class BandBounds:
     open_px: int
     tu_mm: float
     hand_max_mm: float
-    valid_u8: np.ndarray | None = None
     min_hand_mm2: float = 6000.0
-    small_valid: np.ndarray | None = None  # valid_u8 at the hand map's 1/4 resolution
     # the hand map's samples (see handmap.hand_levels): high_lo / high_hi at the 4 middle
     # pixels of each 1/4 block, (4, h/4, w/4), and whether each block's corner pixel is usable
     hand_lo: np.ndarray | None = None
@@ -106,7 +104,7 @@ def _bounds_kernel(surface_mm: np.ndarray, valid: np.ndarray, factor: np.ndarray
 
 
 def band_bounds(surface: SurfaceModel, config: RegionConfig, tip_radius_mm: float = 7.0) -> BandBounds:
-    """Precompute the per-pixel bounds for :func:`band_masks` (once per surface).
+    """Precompute the per-pixel depth bounds of the band and of the hand (once per surface).
 
     The bounds own a copy of the surface depth, so that :func:`refresh_rows` can follow a
     surface that updates itself without touching the caller's model.
@@ -130,14 +128,10 @@ def band_bounds(surface: SurfaceModel, config: RegionConfig, tip_radius_mm: floa
         factor=f, tl_mm=tl, surface_mm=surface_mm, sigma_mm=surface.sigma_mm,
         valid=surface.valid, to_mm=to_mm, mm_per_px=mm_px, min_area_px=min_area,
         open_px=open_px, tu_mm=cfg.tu_mm, hand_max_mm=cfg.hand_max_mm,
-        valid_u8=surface.valid.astype(np.uint8) * np.uint8(255), min_hand_mm2=cfg.min_hand_mm2,
+        min_hand_mm2=cfg.min_hand_mm2,
         hand_lo=_hand_samples(hl), hand_hi=_hand_samples(hh),
         hand_valid=np.ascontiguousarray(surface.valid[::HAND_SCALE, ::HAND_SCALE][
             :max(1, surface.valid.shape[0] // HAND_SCALE), :max(1, surface.valid.shape[1] // HAND_SCALE)]),
-        small_valid=cv2.resize(surface.valid.astype(np.uint8) * np.uint8(255),
-                               (max(1, surface.valid.shape[1] // HAND_SCALE),
-                                max(1, surface.valid.shape[0] // HAND_SCALE)),
-                               interpolation=cv2.INTER_NEAREST),
     )
 
 
@@ -177,18 +171,6 @@ def refresh_rows(bounds: BandBounds, y0: int, y1: int) -> None:
             bounds.hand_hi[:, j0:j1] = _hand_samples(bounds.high_hi, j0, j1)
 
 
-def band_mask(depth: np.ndarray, bounds: BandBounds) -> np.ndarray:
-    """The band mask (uint8, 255 = Tl < height < Tu) of a raw depth frame; zeros are not in it."""
-    return cv2.inRange(depth, bounds.band_lo, bounds.band_hi)
-
-
-def band_masks(depth: np.ndarray, bounds: BandBounds) -> tuple[np.ndarray, np.ndarray]:
-    """(band, high) uint8 masks (255 = in) of a raw depth frame; zeros are in neither."""
-    band = cv2.inRange(depth, bounds.band_lo, bounds.band_hi)
-    high = cv2.inRange(depth, bounds.high_lo, bounds.high_hi)
-    return band, high
-
-
 @dataclass(frozen=True)
 class Regions:
     """Touch regions of one frame (parallel over the kept regions).
@@ -224,7 +206,7 @@ class Regions:
 
 def band_core(depth: np.ndarray, bounds: BandBounds) -> np.ndarray:
     """The band mask of a raw depth frame eroded by ``open_px`` (uint8, 255 = in): equal to
-    ``cv2.erode(band_mask(depth, bounds), open_px square)``."""
+    ``cv2.erode(cv2.inRange(depth, band_lo, band_hi), open_px square)``."""
     return _band_core(depth, bounds.band_lo, bounds.band_hi, bounds.open_px // 2)[0]
 
 
