@@ -103,3 +103,71 @@ def test_adaptation_can_be_switched_off(enabled):
     cfg = PipelineConfig().replace(adapt={"enabled": enabled})
     p, _ = run([lambda k: with_box] * 90, config=cfg)
     assert (float(p._bounds.surface_mm[230, 300]) < 950) is enabled
+
+
+@pytest.mark.parametrize("h, w", [(480, 640), (424, 512), (250, 333), (7, 5), (101, 99)])
+def test_coarse_view_samples_the_pixels_opencv_nearest_resize_takes(h, w):
+    import cv2
+
+    from depthtouch.adapt import _nearest, _upsample
+
+    sh, sw = max(1, h // 4), max(1, w // 4)
+    img = np.arange(h * w, dtype=np.float32).reshape(h, w)
+    want = cv2.resize(img, (sw, sh), interpolation=cv2.INTER_NEAREST)
+    np.testing.assert_array_equal(img[np.ix_(_nearest(sh, h), _nearest(sw, w))], want)
+    small = (np.arange(sh * sw) % 251).astype(np.uint8).reshape(sh, sw)
+    want = cv2.resize(small, (w, h), interpolation=cv2.INTER_NEAREST)
+    np.testing.assert_array_equal(_upsample(small, _nearest(h, sh), _nearest(w, sw)), want)
+
+
+def _exclusions_opencv(adapter, depth, touch_xy_px):
+    """The exclusion map as OpenCV array calls (the compiled version's oracle): changes at 1/4
+    resolution connected to the border, dilated, and discs around the touches; full size."""
+    import cv2
+
+    b, scale = adapter.bounds, 4
+    h, w = depth.shape
+    sw, sh = max(1, w // scale), max(1, h // scale)
+    ds = cv2.resize(depth, (sw, sh), interpolation=cv2.INTER_NEAREST).astype(np.float32)
+    ds *= np.float32(b.to_mm)
+    ss = cv2.resize(b.surface_mm, (sw, sh), interpolation=cv2.INTER_NEAREST)
+    tl = cv2.resize(b.tl_mm, (sw, sh), interpolation=cv2.INTER_NEAREST)
+    ok = (ds > 0) & (cv2.resize(b.valid.view(np.uint8), (sw, sh),
+                                 interpolation=cv2.INTER_NEAREST) > 0)
+    changed = (ok & (np.abs(ss - ds) > tl)).astype(np.uint8)
+    _, labels, stats, _ = cv2.connectedComponentsWithStats(changed, connectivity=8)
+    x, y, bw, bh = stats[:, 0], stats[:, 1], stats[:, 2], stats[:, 3]
+    border = (x == 0) | (y == 0) | (x + bw >= sw) | (y + bh >= sh)
+    border[0] = False
+    excl = cv2.dilate(border[labels].astype(np.uint8), np.ones((3, 3), np.uint8))
+    r = max(1, int(round(adapter.config.keep_out_mm / b.mm_per_px / scale)))
+    for x_px, y_px in touch_xy_px:
+        cv2.circle(excl, (int(x_px / scale), int(y_px / scale)), r, 1, thickness=-1)
+    return cv2.resize(excl, (w, h), interpolation=cv2.INTER_NEAREST) > 0
+
+
+def test_exclusions_match_the_opencv_version():
+    """Frame by frame on a simulated recording with objects and arms from the border."""
+    import cv2
+
+    from depthtouch.adapt import _upsample
+    from depthtouch.sim import render_scene
+
+    rec = render_scene("object", camera="kinect-v2", distance_m=1.0, seed=4)
+    p = Pipeline()
+    compared = 0
+    for i in range(rec.depth.shape[0]):
+        p.process(Frame(rec.depth[i], float(rec.timestamps_s[i]), i, rec.depth_scale_m, rec.K))
+        a = p._adapter
+        if a is None or i % 4:
+            continue
+        d = cv2.medianBlur(rec.depth[i], 3)
+        touch = np.array([[100.0 + i, 200.0], [300.0, 50.0 + i]])
+        want = _exclusions_opencv(a, d, touch)
+        kept = a._exclude
+        a._exclusions(d, touch)
+        got = _upsample(a._exclude, a._up_y, a._up_x) > 0
+        a._exclude = kept
+        np.testing.assert_array_equal(got, want)
+        compared += int(want.any())
+    assert compared > 20

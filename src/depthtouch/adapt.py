@@ -25,6 +25,7 @@ import numpy as np
 
 from .config import AdaptConfig
 from .regions import BandBounds, refresh_rows
+from .runs import dilate3x3, part_levels
 
 _SCALE = 4  # the whole-frame checks run on a 1/4 resolution view
 _BLOCK = 8  # the bump check compares a 1/8 view (2x2 means, every 8th pixel)
@@ -52,10 +53,21 @@ class SurfaceAdapter:
         self._still_tol = np.maximum(np.float32(self.config.still_mm),
                                      3.0 * self.bounds.sigma_mm).astype(np.float32)
         self._visit_t = np.full(len(self._stripes) - 1, np.nan)
-        self._exclude = np.zeros((h, w), bool)
+        # the 1/4 view of the exclusions: which pixels it samples (OpenCV's nearest-neighbour
+        # resize), and back
+        sh, sw = max(1, h // _SCALE), max(1, w // _SCALE)
+        self._view_y, self._view_x = _nearest(sh, h), _nearest(sw, w)
+        self._up_y, self._up_x = _nearest(h, sh), _nearest(w, sw)
+        view = np.ix_(self._view_y, self._view_x)
+        self._view_tl = np.ascontiguousarray(self.bounds.tl_mm[view])
+        self._view_ok = np.ascontiguousarray(self.bounds.valid[view])
+        self._exclude = np.zeros((sh, sw), np.uint8)
         self._bump_since: float | None = None
+        # the bump check's 1/8 views: of the surface (refreshed each stripe cycle) and of the
+        # fixed usable mask and threshold
         self._coarse: tuple[np.ndarray, np.ndarray] | None = None
-        self._block_valid = np.zeros((1, 1), bool)
+        self._block_valid = self._sample(self.bounds.valid.view(np.uint8) * np.uint8(255)) == 255
+        self._block_thr = np.maximum(np.float32(2.0), 0.5 * self._sample(self.bounds.tl_mm))
         self._ref: np.ndarray | None = None
         self._ref_t: float | None = None
         self._prev_blocks: np.ndarray | None = None
@@ -91,9 +103,7 @@ class SurfaceAdapter:
             return None
         b = self.bounds
         if self._coarse is None:
-            self._block_valid = self._sample(b.valid.view(np.uint8) * np.uint8(255)) == 255
-            thr = self._sample(b.tl_mm)
-            self._coarse = (self._sample(b.surface_mm), np.maximum(np.float32(2.0), 0.5 * thr))
+            self._coarse = (self._sample(b.surface_mm), self._block_thr)
         ss, thr = self._coarse
         ds = self._frame_blocks(depth)
         ref, last_t, prev = self._ref, self._ref_t, self._prev_blocks
@@ -148,8 +158,8 @@ class SurfaceAdapter:
                  if math.isfinite(last) and t > last else -1.0)
         n_abs = _stripe_update(
             depth, b.surface_mm, b.factor, b.tl_mm, b.valid, self._since, self._prev,
-            self._still_tol, self._exclude, y0, y1, float(b.to_mm), tt, float(cfg.absorb_s),
-            bool(self._have_prev[k]), alpha,
+            self._still_tol, _upsample(self._exclude, self._up_y[y0:y1], self._up_x), y0, y1,
+            float(b.to_mm), tt, float(cfg.absorb_s), bool(self._have_prev[k]), alpha,
         )
         self.absorbed_px += n_abs
         self._visit_t[k] = t
@@ -164,28 +174,72 @@ class SurfaceAdapter:
         """What must never be absorbed: changes connected to the image border, and the
         surroundings of active touches (a 1/4 resolution view, once per stripe cycle)."""
         cfg, b = self.config, self.bounds
-        h, w = depth.shape
-        sw, sh = max(1, w // _SCALE), max(1, h // _SCALE)
-        ds = cv2.resize(depth, (sw, sh), interpolation=cv2.INTER_NEAREST).astype(np.float32)
-        ds *= np.float32(b.to_mm)
-        ss = cv2.resize(b.surface_mm, (sw, sh), interpolation=cv2.INTER_NEAREST)
-        tl = cv2.resize(b.tl_mm, (sw, sh), interpolation=cv2.INTER_NEAREST)
-        ok = (ds > 0) & (cv2.resize(b.valid.view(np.uint8), (sw, sh),
-                                     interpolation=cv2.INTER_NEAREST) > 0)
-        changed = ok & (np.abs(ss - ds) > tl)
+        changed = _changed_view(depth, b.surface_mm, self._view_tl, self._view_ok, self._view_y,
+                                self._view_x, float(b.to_mm))
         # Changes connected to the image border are people: never absorbed.
-        mask = changed.astype(np.uint8)
-        n, labels, stats, _ = cv2.connectedComponentsWithStats(mask, connectivity=8)
-        x, y, bw, bh = stats[:, 0], stats[:, 1], stats[:, 2], stats[:, 3]
-        border = (x == 0) | (y == 0) | (x + bw >= sw) | (y + bh >= sh)
-        border[0] = False
-        excl = border[labels].astype(np.uint8)
-        excl = cv2.dilate(excl, np.ones((3, 3), np.uint8))
+        excl = dilate3x3((part_levels(changed, 1.0, math.inf) == 2).view(np.uint8))
         if len(touch_xy_px):
             r = max(1, int(round(cfg.keep_out_mm / b.mm_per_px / _SCALE)))
             for x_px, y_px in np.asarray(touch_xy_px, np.float64):
                 cv2.circle(excl, (int(x_px / _SCALE), int(y_px / _SCALE)), r, 1, thickness=-1)
-        self._exclude = cv2.resize(excl, (w, h), interpolation=cv2.INTER_NEAREST) > 0
+        self._exclude = excl
+
+
+def _nearest(n_out: int, n_in: int) -> np.ndarray:
+    """The input index each of n_out outputs takes in OpenCV's nearest-neighbour resize
+    (floor(i * n_in / n_out), computed as OpenCV does)."""
+    inv = 1.0 / (n_out / n_in)
+    return np.array([min(math.floor(i * inv), n_in - 1) for i in range(n_out)], np.int64)
+
+
+@numba.njit(cache=True, nogil=True)
+def _upsample(small: np.ndarray, up_y: np.ndarray, up_x: np.ndarray) -> np.ndarray:
+    """A coarse map at full resolution: pixel (y, x) takes small[up_y[y], up_x[x]]. A row the
+    same as the one above is copied; a width of exactly four times the coarse one is spread
+    four pixels at a time."""
+    h, w = up_y.shape[0], up_x.shape[0]
+    sw = small.shape[1]
+    out = np.empty((h, w), np.uint8)
+    by_four = w == 4 * sw
+    for x in range(w):
+        by_four = by_four and up_x[x] == x // 4
+    for y in range(h):
+        dst = out[y]
+        if y > 0 and up_y[y] == up_y[y - 1]:
+            dst[:] = out[y - 1]
+            continue
+        src = small[up_y[y]]
+        if by_four:
+            for i in range(sw):
+                v = src[i]
+                dst[4 * i] = v
+                dst[4 * i + 1] = v
+                dst[4 * i + 2] = v
+                dst[4 * i + 3] = v
+        else:
+            for x in range(w):
+                dst[x] = src[up_x[x]]
+    return out
+
+
+@numba.njit(cache=True, nogil=True)
+def _changed_view(depth: np.ndarray, surface_mm: np.ndarray, view_tl: np.ndarray,
+                  view_ok: np.ndarray, view_y: np.ndarray, view_x: np.ndarray, to_mm: float
+                  ) -> np.ndarray:
+    """The 1/4 view of what differs from the surface by more than Tl (uint8 0/1): the pixels
+    (view_y[j], view_x[i]) of the frame and the surface; ``view_tl`` and ``view_ok`` are Tl and
+    the usable mask at the same pixels."""
+    sh, sw = view_y.shape[0], view_x.shape[0]
+    out = np.zeros((sh, sw), np.uint8)
+    t = np.float32(to_mm)
+    for j in range(sh):
+        dr, sr, tr, okr = depth[view_y[j]], surface_mm[view_y[j]], view_tl[j], view_ok[j]
+        for i in range(sw):
+            x = view_x[i]
+            d = np.float32(dr[x]) * t
+            if d > 0 and okr[i] and abs(sr[x] - d) > tr[i]:
+                out[j, i] = 1
+    return out
 
 
 @numba.njit(cache=True, nogil=True)
@@ -197,7 +251,7 @@ def _stripe_update(
 ) -> int:
     """The stripe of rows y0:y1 of :meth:`SurfaceAdapter.update`, pixel by pixel in one
     compiled pass (updates ``surface_mm``, ``since`` and ``prev`` in place; returns the pixels
-    absorbed).
+    absorbed). ``exclude``: the stripe's rows of the exclusion map (non-zero = never absorb).
 
     A pixel off the surface by more than its Tl is "changed"; its ``since`` restarts when it
     moved by more than ``still_tol`` since the last visit; a change still for ``absorb_s`` and
@@ -213,7 +267,7 @@ def _stripe_update(
     # without branches (selects), row by row: the compiler vectorises it
     for y in range(y0, y1):
         dr, sr, fr, tr, vr = depth[y], surface_mm[y], factor[y], tl_mm[y], valid[y]
-        since_r, prev_r, tol_r, excl_r = since[y], prev[y], still_tol[y], exclude[y]
+        since_r, prev_r, tol_r, excl_r = since[y], prev[y], still_tol[y], exclude[y - y0]
         for x in range(w):
             d = dr[x]
             dm = np.float32(d) * np.float32(to_mm)
@@ -223,7 +277,7 @@ def _stripe_update(
             si = since_r[x]
             moved = (not have_prev) | (si == inf) | (abs(dm - prev_r[x]) > tol_r[x])
             si = t32 if moved else si
-            absorb = changed & (tt - si >= absorb_s) & (not excl_r[x])
+            absorb = changed & (tt - si >= absorb_s) & (excl_r[x] == 0)
             drift = (not changed) & ok & drift_on
             sr[x] = dm if absorb else (s + a * (dm - s) if drift else s)
             since_r[x] = si if (changed & (not absorb)) else inf
@@ -261,7 +315,9 @@ def warm_up() -> None:
     b = np.ones((8, 8), np.bool_)
     _blocks(z16, 4, 1.0, b)
     _compare_blocks(f, f.copy(), f, f, 0.5)
-    _stripe_update(z16, f, f + 1, f + 1, b, f.copy(), f.copy(), f + 1, ~b, 0, 8, 1.0, 0.0, 0.5,
+    idx = np.arange(8)
+    excl = _upsample(_changed_view(z16, f, f, b, idx, idx, 1.0), idx, idx)
+    _stripe_update(z16, f, f + 1, f + 1, b, f.copy(), f.copy(), f + 1, excl, 0, 8, 1.0, 0.0, 0.5,
                    False, -1.0)
 
 

@@ -14,7 +14,7 @@ import numba
 import numpy as np
 
 from .regions import HAND_SCALE, BandBounds
-from .runs import label_runs, row_runs
+from .runs import dilate3x3, part_levels
 
 _S = HAND_SCALE  # a compile-time constant in the kernels below
 _C0 = _S // 2 - 1 if _S % 2 == 0 else _S // 2  # the two middle rows / columns of a block
@@ -51,8 +51,9 @@ def hand_levels(depth: np.ndarray, hand_lo: np.ndarray, hand_hi: np.ndarray,
     is dilated once more, so that the coarse grid does not cut off the last pixels of an arm
     next to a fingertip. ``px_mm2``: area of one full-resolution pixel on the surface (mm^2).
     """
-    return _dilate_max(_levels(_dilate_max(_raised(depth, hand_lo, hand_hi, hand_valid)),
-                               px_mm2, min_hand_mm2))
+    level = part_levels(dilate3x3(_raised(depth, hand_lo, hand_hi, hand_valid)),
+                        _S * _S * px_mm2, min_hand_mm2)
+    return dilate3x3(level)
 
 
 @numba.njit(cache=True, nogil=True)
@@ -86,57 +87,6 @@ def _raised(depth: np.ndarray, lo: np.ndarray, hi: np.ndarray, hand_valid: np.nd
                              | ((lo2[i] <= d2) & (d2 <= hi2[i])) | ((lo3[i] <= d3) & (d3 <= hi3[i]))
                              | ((rc[_S * i] == 0) & ok[i]))
     return raw
-
-
-@numba.njit(cache=True, nogil=True)
-def _levels(small: np.ndarray, px_mm2: float, min_hand_mm2: float) -> np.ndarray:
-    """Level of each part (8-connected) of a coarse mask: 2 when it touches the image border,
-    1 when its area is at least ``min_hand_mm2``, else 0. The parts are labelled by runs (see
-    :func:`runs.label_runs`): a few hundred runs instead of a flood over every pixel."""
-    sh, sw = small.shape
-    runs = np.empty((sh * (sw // 2 + 1), 3), np.int64)
-    n = 0
-    for j in range(sh):
-        n = row_runs(small[j], j, runs, n)
-    comp, n_comp = label_runs(runs[:n])
-    area = np.zeros(n_comp, np.int64)
-    border = np.zeros(n_comp, np.bool_)
-    for r in range(n):
-        c = comp[r]
-        area[c] += runs[r, 2] - runs[r, 1]
-        if runs[r, 0] == 0 or runs[r, 0] == sh - 1 or runs[r, 1] == 0 or runs[r, 2] == sw:
-            border[c] = True
-    lev = np.zeros((sh, sw), np.uint8)
-    for r in range(n):
-        c = comp[r]
-        v = 2 if border[c] else (1 if area[c] * _S * _S * px_mm2 >= min_hand_mm2 else 0)
-        lev[runs[r, 0], runs[r, 1]:runs[r, 2]] = v
-    return lev
-
-
-@numba.njit(cache=True, nogil=True)
-def _dilate_max(a: np.ndarray) -> np.ndarray:
-    """3x3 maximum filter (pixels outside count as 0); a row pass then a column pass."""
-    h, w = a.shape
-    t = np.empty((h, w), np.uint8)
-    for y in range(h):
-        for x in range(w):
-            v = a[y, x]
-            if x > 0 and a[y, x - 1] > v:
-                v = a[y, x - 1]
-            if x < w - 1 and a[y, x + 1] > v:
-                v = a[y, x + 1]
-            t[y, x] = v
-    out = np.empty((h, w), np.uint8)
-    for y in range(h):
-        for x in range(w):
-            v = t[y, x]
-            if y > 0 and t[y - 1, x] > v:
-                v = t[y - 1, x]
-            if y < h - 1 and t[y + 1, x] > v:
-                v = t[y + 1, x]
-            out[y, x] = v
-    return out
 
 
 def warm_up() -> None:

@@ -3,8 +3,10 @@
 A mask with a few small parts (the touch band after its erosion, the coarse hand map) is
 listed as runs, (n, 3) rows (y, x0, x1) covering the pixels x0..x1-1 of row y in raster order;
 its 8-connected parts are found by joining the runs that touch from one row to the next
-(union-find), a few hundred steps instead of a scan of the whole mask per step. Compiled with
-numba (cached on disk) like the other per-frame kernels.
+(union-find), a few hundred steps instead of a scan of the whole mask per step. Also here: the
+level of each part of a coarse mask (does it reach the border, is it large) and a 3x3 maximum
+filter, for the coarse maps of the hand and of the surface adaptation. Compiled with numba
+(cached on disk) like the other per-frame kernels.
 """
 
 from __future__ import annotations
@@ -234,3 +236,54 @@ def parts_of_runs(runs: np.ndarray, H: int, W: int, min_area: int, pad: int
         used += mh * mw
         n_out += 1
     return boxes[:n_out], areas[:n_out], buf[:used], starts[:n_out]
+
+
+@numba.njit(cache=True, nogil=True)
+def part_levels(mask: np.ndarray, px_area: float, min_area: float) -> np.ndarray:
+    """Level of each 8-connected part of a (coarse) mask: 2 when it touches the mask's border
+    (something reaching in from outside the view), 1 when its area (pixels x ``px_area``) is at
+    least ``min_area``, else 0; as a map of the mask's shape."""
+    sh, sw = mask.shape
+    runs = np.empty((sh * (sw // 2 + 1), 3), np.int64)
+    n = 0
+    for j in range(sh):
+        n = row_runs(mask[j], j, runs, n)
+    comp, n_comp = label_runs(runs[:n])
+    area = np.zeros(n_comp, np.int64)
+    border = np.zeros(n_comp, np.bool_)
+    for r in range(n):
+        c = comp[r]
+        area[c] += runs[r, 2] - runs[r, 1]
+        if runs[r, 0] == 0 or runs[r, 0] == sh - 1 or runs[r, 1] == 0 or runs[r, 2] == sw:
+            border[c] = True
+    lev = np.zeros((sh, sw), np.uint8)
+    for r in range(n):
+        c = comp[r]
+        v = 2 if border[c] else (1 if area[c] * px_area >= min_area else 0)
+        lev[runs[r, 0], runs[r, 1]:runs[r, 2]] = v
+    return lev
+
+
+@numba.njit(cache=True, nogil=True)
+def dilate3x3(a: np.ndarray) -> np.ndarray:
+    """3x3 maximum filter (pixels outside count as 0); a row pass then a column pass."""
+    h, w = a.shape
+    t = np.empty((h, w), np.uint8)
+    for y in range(h):
+        for x in range(w):
+            v = a[y, x]
+            if x > 0 and a[y, x - 1] > v:
+                v = a[y, x - 1]
+            if x < w - 1 and a[y, x + 1] > v:
+                v = a[y, x + 1]
+            t[y, x] = v
+    out = np.empty((h, w), np.uint8)
+    for y in range(h):
+        for x in range(w):
+            v = t[y, x]
+            if y > 0 and t[y - 1, x] > v:
+                v = t[y - 1, x]
+            if y < h - 1 and t[y + 1, x] > v:
+                v = t[y + 1, x]
+            out[y, x] = v
+    return out
