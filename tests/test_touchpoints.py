@@ -116,7 +116,7 @@ SPLIT_CASES = {
 
 @pytest.mark.parametrize("tips, r_px, parts", list(SPLIT_CASES.values()), ids=list(SPLIT_CASES))
 def test_split_fingers_between_tips_side_by_side(tips, r_px, parts):
-    from depthtouch.tipkernel import _split
+    from depthtouch.fingertip import split as _split
 
     mask = _fingers_mask(tips, r_px)
     ys, xs = np.nonzero(mask)
