@@ -194,31 +194,17 @@ def _nearest(n_out: int, n_in: int) -> np.ndarray:
 
 @numba.njit(cache=True, nogil=True)
 def _upsample(small: np.ndarray, up_y: np.ndarray, up_x: np.ndarray) -> np.ndarray:
-    """A coarse map at full resolution: pixel (y, x) takes small[up_y[y], up_x[x]]. A row the
-    same as the one above is copied; a width of exactly four times the coarse one is spread
-    four pixels at a time."""
+    """A coarse map at full resolution: pixel (y, x) takes small[up_y[y], up_x[x]] (a row the
+    same as the one above is copied)."""
     h, w = up_y.shape[0], up_x.shape[0]
-    sw = small.shape[1]
     out = np.empty((h, w), np.uint8)
-    by_four = w == 4 * sw
-    for x in range(w):
-        by_four = by_four and up_x[x] == x // 4
     for y in range(h):
-        dst = out[y]
         if y > 0 and up_y[y] == up_y[y - 1]:
-            dst[:] = out[y - 1]
+            out[y] = out[y - 1]
             continue
-        src = small[up_y[y]]
-        if by_four:
-            for i in range(sw):
-                v = src[i]
-                dst[4 * i] = v
-                dst[4 * i + 1] = v
-                dst[4 * i + 2] = v
-                dst[4 * i + 3] = v
-        else:
-            for x in range(w):
-                dst[x] = src[up_x[x]]
+        src, dst = small[up_y[y]], out[y]
+        for x in range(w):
+            dst[x] = src[up_x[x]]
     return out
 
 
