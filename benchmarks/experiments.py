@@ -28,9 +28,9 @@ import numpy as np
 
 from depthtouch import __version__
 from depthtouch.config import PipelineConfig
-from depthtouch.evaluation import EvalResult, Metrics, summarize
-from depthtouch.report import metrics_markdown, plot_xy
-from depthtouch.suite import SuiteCase, group_metrics, load_suite, run_cases, run_grid
+from depthtouch.evaluation.metrics import EvalResult, Metrics, summarize
+from depthtouch.evaluation.report import metrics_markdown, plot_xy
+from depthtouch.evaluation.suite import SuiteCase, group_metrics, load_suite, run_cases, run_grid
 
 CAMERAS = ("kinect-v2", "realsense-d435", "kinect-v1")
 ROOT = Path(__file__).resolve().parents[1]

@@ -15,9 +15,9 @@ import argparse
 from pathlib import Path
 
 from depthtouch.config import PipelineConfig
-from depthtouch.evaluation import summarize
-from depthtouch.filters import FILTERS
-from depthtouch.suite import SuiteCase, run_grid
+from depthtouch.evaluation.metrics import summarize
+from depthtouch.evaluation.suite import SuiteCase, run_grid
+from depthtouch.tracking.filters import FILTERS
 
 ROOT = Path(__file__).resolve().parents[1]
 CAMERAS = ("kinect-v2", "realsense-d435", "kinect-v1")

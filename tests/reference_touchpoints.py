@@ -1,10 +1,10 @@
 """Reference touch points: the per-region numpy/OpenCV version of the fingertip estimator.
 
-This is how ``depthtouch.touchpoints`` worked before its per-region steps were compiled into
-``depthtouch.tipkernel``: some 40 small array calls per region. It is kept here as the test
+This is how ``depthtouch.touch.points`` worked before its per-region steps were compiled into
+``depthtouch.touch.tipkernel``: some 40 small array calls per region. It is kept here as the test
 oracle: the compiled kernel must find the same points (tests/test_touchpoints.py). Likewise
 :func:`regions_of_core`, the regions from OpenCV's outer contours, is the oracle of the compiled
-``depthtouch.regions.band_regions`` (tests/test_regions.py).
+``depthtouch.touch.regions.band_regions`` (tests/test_regions.py).
 """
 
 from __future__ import annotations
@@ -15,7 +15,7 @@ import cv2
 import numpy as np
 
 from depthtouch.config import TouchPointConfig
-from depthtouch.regions import HAND_SCALE, BandBounds, Regions
+from depthtouch.touch.regions import HAND_SCALE, BandBounds, Regions
 from depthtouch.types import TouchPoints
 
 _K3 = np.ones((3, 3), np.uint8)

@@ -22,7 +22,7 @@ import pytest
 from conftest import CliResult, leftovers
 from depthtouch.outputs.jsonl import read_events
 from depthtouch.sources import write_png_folder
-from depthtouch.surface import learn_surface
+from depthtouch.surface.model import learn_surface
 from synth import K_640, make_recording, write_recording
 
 Arrays = tuple[np.ndarray, np.ndarray]

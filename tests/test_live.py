@@ -473,7 +473,7 @@ def test_run_live_ctrl_c_commits_the_events_file(tmp_path):  # type: ignore[no-u
 
 def test_run_live_rejects_a_surface_of_another_size(tmp_path):  # type: ignore[no-untyped-def]
     from depthtouch.errors import SurfaceError
-    from depthtouch.surface import learn_surface
+    from depthtouch.surface.model import learn_surface
 
     surf = learn_surface(np.full((5, 10, 12), 1000, np.uint16), 0.001)
     path = surf.save(tmp_path / "s.npz")

@@ -87,7 +87,7 @@ def _add_bench_filters(sub: argparse._SubParsersAction) -> None:
                    help="re-tune each filter on the tuning seeds before measuring")
 
     def run(a: argparse.Namespace) -> int:
-        from .filterbench import bench_filters, describe, to_json, write_figure
+        from .evaluation.filterbench import bench_filters, describe, to_json, write_figure
 
         if a.figure:  # first, so that a bad path fails before the measurement
             write_figure(a.figure, a.seed)
@@ -160,7 +160,7 @@ def _add_eval(sub: argparse._SubParsersAction) -> None:
         import json
 
         from .errors import ConfigError
-        from .suite import cache_root, eval_recording_command, eval_suite_command
+        from .evaluation.suite import cache_root, eval_recording_command, eval_suite_command
 
         cfg = _load_config(a.config)
         if a.suite:
@@ -179,7 +179,7 @@ def _add_eval(sub: argparse._SubParsersAction) -> None:
         else:
             from rich.console import Console
 
-            from .report import metrics_table
+            from .evaluation.report import metrics_table
 
             wide = None if sys.stdout.isatty() else 200  # no terminal: do not squeeze to 80
             Console(width=wide).print(
@@ -207,7 +207,7 @@ def _add_demo(sub: argparse._SubParsersAction) -> None:
     def run(a: argparse.Namespace) -> int:
         from rich.console import Console
 
-        from .report import DEMO_SCENES, metrics_table, run_demo
+        from .evaluation.report import DEMO_SCENES, metrics_table, run_demo
 
         scenes = [s.strip() for s in a.scenes.split(",") if s.strip()] if a.scenes else None
         res = run_demo(a.out, scenes=scenes or DEMO_SCENES, camera=a.camera,
@@ -423,8 +423,8 @@ def _add_record(sub: argparse._SubParsersAction) -> None:
     p.add_argument("-q", "--quiet", action="store_true", help="print only errors")
 
     def run(a: argparse.Namespace) -> int:
-        from .record import record
         from .sources import open_source
+        from .sources.record import record
 
         source = open_source(a.source, **_camera_options(a, a.source))
         tty = sys.stderr.isatty() and not a.quiet

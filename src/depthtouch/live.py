@@ -727,7 +727,7 @@ def run_live(
     calibration = load_calibration_file(calibration_path)
     surface = None
     if surface_path:
-        from .surface import load_surface
+        from .surface.model import load_surface
 
         surface = load_surface(surface_path)
     pipeline = Pipeline(config, surface=surface, calibration=calibration)  # type: ignore[arg-type]

@@ -20,14 +20,14 @@ from typing import Any, Protocol
 import cv2
 import numpy as np
 
-from .adapt import SurfaceAdapter
 from .config import PipelineConfig
 from .errors import SourceError, SurfaceError
-from .filters import TouchFilter, make_filter
-from .regions import BandBounds, band_bounds, band_regions, height_mm
-from .surface import SurfaceLearner, SurfaceModel
-from .touchpoints import find_touch_points
-from .tracking import Tracker, TrackUpdate
+from .surface.adapt import SurfaceAdapter
+from .surface.model import SurfaceLearner, SurfaceModel
+from .touch.points import find_touch_points
+from .touch.regions import BandBounds, band_bounds, band_regions, height_mm
+from .tracking.filters import TouchFilter, make_filter
+from .tracking.tracker import Tracker, TrackUpdate
 from .types import Frame, TouchEvent, TouchPoints
 
 log = logging.getLogger(__name__)
@@ -40,7 +40,8 @@ def _warm_up() -> None:
     global _warm
     if _warm:
         return
-    from . import adapt, handmap, regions, tipkernel
+    from .surface import adapt
+    from .touch import handmap, regions, tipkernel
 
     tipkernel.warm_up()
     handmap.warm_up()

@@ -17,7 +17,7 @@ from .errors import ConfigError, SourceError
 from .outputs.base import EventSink
 from .pipeline import Pipeline
 from .sources import DepthSource, open_source
-from .surface import load_surface
+from .surface.model import load_surface
 from .types import Frame, TouchEvent
 
 

@@ -1,0 +1,640 @@
+"""Match reported touch events to the simulator's ground truth and measure accuracy.
+
+Everything here is a pure function of a :class:`Truth` (parsed from a ``depthtouch-truth/1``
+document) and a list of :class:`~depthtouch.types.TouchEvent`:
+
+- per frame, reported touches (``down``/``move`` events) are assigned to true contacts by optimal
+  assignment (``scipy.optimize.linear_sum_assignment``) on the distance in mm on the surface: a
+  reported pixel (x, y) becomes the ray r = K^-1 [x, y, 1], intersected with the tangent plane at
+  the contact point P (normal n): Q = r (n.P) / (n.r); the error is |Q - P|; pairs farther than
+  the gate (default 20 mm) are never matched;
+- a reported track (id) matched in no frame is a false touch; it is attributed to a hovering
+  finger when it comes within the gate of one (by the hover's height), else to "other";
+- contact episodes (a truth id over consecutive frames) give recall, id switches, touch-down and
+  lift latency, the drag-path angle error (the paper's measure) and the jitter of a still finger.
+
+:func:`evaluate` returns the raw per-recording numbers (:class:`EvalResult`); :func:`summarize`
+pools any number of them into one :class:`Metrics` (pooled, not averaged per recording).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from scipy.optimize import linear_sum_assignment
+
+from ..errors import ConfigError, SourceError
+from ..types import TouchEvent
+
+TRUTH_FORMAT = "depthtouch-truth/1"
+GATE_MM = 20.0
+_BIG = 1e9
+
+
+# --- truth ---------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class Truth:
+    """Ground truth of one recording as parallel arrays (one row per contact or hover per frame).
+
+    K: (3, 3) intrinsics of the depth image. fps: nominal frame rate (Hz). n_frames: frames in
+    the recording (frame indices count from 0, including the empty frames). empty_frames: leading
+    frames of the empty surface. contact_*: frame (M,), id (M,), xy_px (M, 2) projection,
+    p_mm (M, 3) contact point in the camera frame, n (M, 3) unit surface normal there.
+    contact_occluded (M,): the truth marks the tip hidden from the camera in that frame.
+    hover_*: frame (H,), id (H,), xy_px (H, 2), p_mm (H, 3) (the tip's closest point projected
+    onto the surface), n (H, 3) (the optical axis, -z, when the truth gives none), height_mm (H,).
+    meta: scene, seed, camera, surface and events of the document, as given.
+    """
+
+    K: np.ndarray
+    fps: float
+    n_frames: int
+    empty_frames: int
+    contact_frame: np.ndarray
+    contact_id: np.ndarray
+    contact_xy_px: np.ndarray
+    contact_p_mm: np.ndarray
+    contact_n: np.ndarray
+    contact_occluded: np.ndarray
+    hover_frame: np.ndarray
+    hover_id: np.ndarray
+    hover_xy_px: np.ndarray
+    hover_p_mm: np.ndarray
+    hover_n: np.ndarray
+    hover_height_mm: np.ndarray
+    meta: Mapping[str, Any] = field(default_factory=dict)
+
+    @property
+    def duration_s(self) -> float:
+        return self.n_frames / self.fps
+
+
+def _num(v: Any, where: str, key: str) -> float:
+    if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+        raise SourceError(f"{where}: {key} = {v!r} is not a finite number; fix the truth file")
+    return float(v)
+
+
+def _rows(items: Any, keys: tuple[str, ...], where: str) -> list[list[float]]:
+    if not isinstance(items, list):
+        raise SourceError(f"{where} must be a list; fix the truth file")
+    out = []
+    for j, item in enumerate(items):
+        if not isinstance(item, dict):
+            raise SourceError(f"{where}[{j}] must be an object; fix the truth file")
+        missing = [k for k in keys if k not in item]
+        if missing:
+            raise SourceError(f"{where}[{j}] has no {missing[0]!r}; regenerate the truth file")
+        out.append([_num(item[k], f"{where}[{j}]", k) for k in keys])
+    return out
+
+
+_CONTACT_KEYS = ("id", "x", "y", "X", "Y", "Z", "nx", "ny", "nz")
+_HOVER_KEYS = ("id", "x", "y", "X", "Y", "Z", "height_mm")
+
+
+def truth_from_dict(doc: Any, where: str = "truth") -> Truth:
+    """Validate a truth document (already parsed JSON) and convert it to arrays.
+
+    Raises SourceError with a one-line message naming the bad key.
+    """
+    if not isinstance(doc, dict):
+        raise SourceError(f"{where}: a truth document must be a JSON object; regenerate it")
+    if doc.get("format") != TRUTH_FORMAT:
+        raise SourceError(
+            f"{where}: format is {doc.get('format')!r}, expected {TRUTH_FORMAT!r}; "
+            "give a truth file written by `depthtouch sim`"
+        )
+    cam = doc.get("camera")
+    if not isinstance(cam, dict) or "K" not in cam or "fps" not in cam:
+        raise SourceError(f"{where}: camera must have K and fps; regenerate the truth file")
+    try:
+        K = np.asarray(cam["K"], dtype=np.float64)
+    except (TypeError, ValueError):
+        raise SourceError(f"{where}: camera.K is not numeric; give a 3x3 matrix") from None
+    if K.shape != (3, 3) or not np.all(np.isfinite(K)) or K[0, 0] <= 0 or K[1, 1] <= 0:
+        raise SourceError(f"{where}: camera.K must be 3x3 with positive fx, fy, got {K.shape}")
+    fps = _num(cam["fps"], where, "camera.fps")
+    if fps <= 0:
+        raise SourceError(f"{where}: camera.fps = {fps} must be > 0; fix the truth file")
+    frames = doc.get("frames")
+    if not isinstance(frames, list) or not frames:
+        raise SourceError(f"{where}: frames must be a non-empty list; regenerate the truth file")
+    c_rows: list[list[float]] = []
+    h_rows: list[list[float]] = []
+    h_normals: list[list[float]] = []
+    c_occ: list[bool] = []
+    last = -1
+    for i, fr in enumerate(frames):
+        if not isinstance(fr, dict) or "frame" not in fr:
+            raise SourceError(f"{where}: frames[{i}] has no 'frame'; regenerate the truth file")
+        f = fr["frame"]
+        if isinstance(f, bool) or not isinstance(f, int) or f <= last:
+            raise SourceError(
+                f"{where}: frames[{i}].frame = {f!r} must be an integer above {last}; "
+                "list frames in order"
+            )
+        last = f
+        contacts = fr.get("contacts", [])
+        for j, r in enumerate(_rows(contacts, _CONTACT_KEYS, f"{where}: frames[{i}].contacts")):
+            c_rows.append([f, *r])
+            occ = contacts[j].get("occluded", False)
+            if not isinstance(occ, bool):
+                raise SourceError(
+                    f"{where}: frames[{i}].contacts[{j}].occluded = {occ!r} must be true or false"
+                )
+            c_occ.append(occ)
+        hovers = fr.get("hovers", [])
+        for j, r in enumerate(_rows(hovers, _HOVER_KEYS, f"{where}: frames[{i}].hovers")):
+            h_rows.append([f, *r])
+            h = hovers[j]
+            has_n = all(k in h for k in ("nx", "ny", "nz"))
+            h_normals.append(
+                [_num(h[k], f"{where}: frames[{i}].hovers[{j}]", k) for k in ("nx", "ny", "nz")]
+                if has_n else [0.0, 0.0, -1.0]
+            )
+    c = np.asarray(c_rows, dtype=np.float64).reshape(-1, 10)
+    h = np.asarray(h_rows, dtype=np.float64).reshape(-1, 8)
+    cn = _unit(c[:, 7:10], f"{where}: a contact normal")
+    hn = _unit(np.asarray(h_normals, dtype=np.float64).reshape(-1, 3), f"{where}: a hover normal")
+    empty = doc.get("empty_frames", 0)
+    if isinstance(empty, bool) or not isinstance(empty, int) or empty < 0:
+        raise SourceError(f"{where}: empty_frames = {empty!r} must be a whole number >= 0")
+    meta = {k: doc[k] for k in ("scene", "seed", "camera", "surface", "events") if k in doc}
+    return Truth(
+        K=K, fps=fps, n_frames=last + 1, empty_frames=empty,
+        contact_frame=c[:, 0].astype(np.int64), contact_id=c[:, 1].astype(np.int64),
+        contact_xy_px=c[:, 2:4], contact_p_mm=c[:, 4:7], contact_n=cn,
+        contact_occluded=np.asarray(c_occ, dtype=bool),
+        hover_frame=h[:, 0].astype(np.int64), hover_id=h[:, 1].astype(np.int64),
+        hover_xy_px=h[:, 2:4], hover_p_mm=h[:, 4:7], hover_n=hn, hover_height_mm=h[:, 7],
+        meta=meta,
+    )
+
+
+def _unit(n: np.ndarray, what: str) -> np.ndarray:
+    norm = np.linalg.norm(n, axis=1, keepdims=True)
+    if np.any(norm < 1e-9):
+        raise SourceError(f"{what} is zero; give unit normals (nx, ny, nz) in the truth file")
+    return n / norm
+
+
+def read_truth(path: str | Path) -> Truth:
+    """Read and validate a truth JSON file; any problem is a one-line SourceError."""
+    p = Path(path)
+    try:
+        text = p.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise SourceError(f"{p}: no such truth file; check the path (see depthtouch sim)") from None
+    except (OSError, UnicodeDecodeError) as e:
+        raise SourceError(f"{p}: cannot read the truth file ({e}); give a UTF-8 JSON file") from e
+    try:
+        doc = json.loads(text)
+    except json.JSONDecodeError as e:
+        raise SourceError(f"{p}: not valid JSON ({e.msg} at line {e.lineno}); fix the file") from e
+    except RecursionError:
+        raise SourceError(f"{p}: JSON nested too deeply; regenerate it with depthtouch sim") from None
+    return truth_from_dict(doc, str(p))
+
+
+# --- geometry ------------------------------------------------------------------------------------
+def rays(xy_px: np.ndarray, K: np.ndarray) -> np.ndarray:
+    """Viewing rays r = K^-1 [x, y, 1] of pixels (N, 2) -> (N, 3), with r_z = 1."""
+    xy = np.asarray(xy_px, dtype=np.float64).reshape(-1, 2)
+    fx, fy, cx, cy, s = K[0, 0], K[1, 1], K[0, 2], K[1, 2], K[0, 1]
+    y = (xy[:, 1] - cy) / fy
+    x = (xy[:, 0] - cx - s * y) / fx
+    return np.stack([x, y, np.ones_like(x)], axis=1)
+
+
+def surface_error_mm(
+    xy_px: np.ndarray, K: np.ndarray, p_mm: np.ndarray, n: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Distance in mm on the tangent plane between reported pixels and true points.
+
+    xy_px: (A, 2) reported pixels; p_mm: (B, 3) true points (camera frame); n: (B, 3) unit normals.
+    Returns (dist (A, B), Q (A, B, 3)): Q is the reported ray's intersection with the plane
+    through P_b with normal n_b; rays parallel to the plane (or hitting it behind the camera) get
+    an infinite distance.
+    """
+    r = rays(xy_px, K)
+    p = np.asarray(p_mm, dtype=np.float64).reshape(-1, 3)
+    nn = np.asarray(n, dtype=np.float64).reshape(-1, 3)
+    num = np.sum(nn * p, axis=1)  # (B,)
+    den = r @ nn.T  # (A, B)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        s = num[None, :] / den
+    bad = ~np.isfinite(s) | (s <= 0) | (np.abs(den) < 1e-9)
+    s = np.where(bad, 0.0, s)
+    q = r[:, None, :] * s[:, :, None]
+    d = np.linalg.norm(q - p[None, :, :], axis=2)
+    return np.where(bad, np.inf, d), q
+
+
+def match(dist: np.ndarray, gate: float) -> tuple[np.ndarray, np.ndarray]:
+    """Optimal one-to-one assignment of rows to columns with cost ``dist``, keeping pairs <= gate.
+
+    Returns (rows, cols) int arrays of equal length.
+    """
+    if dist.size == 0:
+        return np.zeros(0, np.int64), np.zeros(0, np.int64)
+    cost = np.where(dist <= gate, dist, _BIG)
+    rows, cols = linear_sum_assignment(cost)
+    keep = cost[rows, cols] < _BIG
+    return rows[keep].astype(np.int64), cols[keep].astype(np.int64)
+
+
+# --- events --------------------------------------------------------------------------------------
+_STATE_CODE = {"down": 0, "move": 1, "up": 2}
+
+
+@dataclass(frozen=True)
+class _Ev:
+    frame: np.ndarray
+    id: np.ndarray
+    state: np.ndarray
+    xy: np.ndarray
+
+
+def _events_arrays(events: Sequence[TouchEvent]) -> _Ev:
+    if not events:
+        return _Ev(np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0, np.int64),
+                   np.zeros((0, 2)))
+    frame = np.fromiter((e.frame for e in events), np.int64, len(events))
+    ids = np.fromiter((e.id for e in events), np.int64, len(events))
+    state = np.fromiter((_STATE_CODE.get(e.state, -1) for e in events), np.int64, len(events))
+    if np.any(state < 0):
+        bad = next(e.state for e in events if e.state not in _STATE_CODE)
+        raise SourceError(f"event state {bad!r} is unknown; expected down, move or up")
+    xy = np.array([(e.x, e.y) for e in events], dtype=np.float64)
+    order = np.argsort(frame, kind="stable")
+    return _Ev(frame[order], ids[order], state[order], xy[order])
+
+
+def _slices(frames: np.ndarray, n_frames: int) -> np.ndarray:
+    """Start offsets (n_frames + 1,) of each frame's rows in a frame-sorted array."""
+    return np.searchsorted(frames, np.arange(n_frames + 1), side="left")
+
+
+# --- evaluation ----------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class EvalResult:
+    """Raw, poolable numbers of one recording (see :func:`summarize`).
+
+    Per contact episode (E,): ep_id, ep_first/ep_last frame, ep_found, ep_visible (the tip is
+    not hidden from the camera in at least one frame), ep_frames_scored (visible contact frames
+    after the first ``settle_frames``), ep_frames_matched (of those), ep_down_latency and
+    ep_lift_latency (frames; NaN when not found / no ``up``), ep_id_switches, ep_path_mm (true
+    path length), ep_angle_deg (mean angle error of a drag, NaN otherwise), ep_angle_steps.
+    errors_mm: surface error of every matched (reported, contact) pair.
+    false_frame, false_id, false_frames, false_hover_height_mm: per false track (F,), its first
+    frame, reported id, frames reported, and the height of the hover it came near (NaN = other).
+    still_sq_sum_mm2, still_count: pooled squared deviations of still-finger runs (for jitter).
+    timing_ms: per-frame processing time when the caller measured it.
+    """
+
+    label: str
+    n_frames: int
+    duration_s: float
+    ep_id: np.ndarray
+    ep_first: np.ndarray
+    ep_last: np.ndarray
+    ep_found: np.ndarray
+    ep_visible: np.ndarray
+    ep_frames_scored: np.ndarray
+    ep_frames_matched: np.ndarray
+    ep_down_latency: np.ndarray
+    ep_lift_latency: np.ndarray
+    ep_id_switches: np.ndarray
+    ep_path_mm: np.ndarray
+    ep_angle_deg: np.ndarray
+    ep_angle_steps: np.ndarray
+    errors_mm: np.ndarray
+    false_frame: np.ndarray
+    false_id: np.ndarray
+    false_frames: np.ndarray
+    false_hover_height_mm: np.ndarray
+    still_sq_sum_mm2: float
+    still_count: int
+    timing_ms: np.ndarray
+
+
+def _episodes(frame: np.ndarray, ids: np.ndarray) -> np.ndarray:
+    """Episode index per contact row: a truth id over consecutive frames (rows sorted by frame)."""
+    order = np.lexsort((frame, ids))
+    f, i = frame[order], ids[order]
+    new = np.ones(len(f), bool)
+    new[1:] = (i[1:] != i[:-1]) | (f[1:] != f[:-1] + 1)
+    ep_sorted = np.cumsum(new) - 1
+    ep = np.empty(len(f), np.int64)
+    ep[order] = ep_sorted
+    return ep
+
+
+def evaluate(
+    truth: Truth,
+    events: Sequence[TouchEvent],
+    *,
+    gate_mm: float = GATE_MM,
+    settle_frames: int = 2,
+    drag_min_path_mm: float = 20.0,
+    min_step_mm: float = 0.5,
+    still_step_mm: float = 0.05,
+    min_still_frames: int = 10,
+    timing_ms: Sequence[float] | np.ndarray | None = None,
+    label: str = "",
+) -> EvalResult:
+    """Match ``events`` to ``truth`` frame by frame and collect the raw metrics.
+
+    gate_mm: largest surface distance of a match (default 20). settle_frames: contact frames at
+    the start of each episode left out of frame recall (the tracker's debounce; default 2).
+    drag_min_path_mm: an episode whose true path is at least this long is a drag (default 20).
+    min_step_mm: true steps shorter than this are skipped in the angle error (default 0.5).
+    still_step_mm / min_still_frames: a still run is >= min_still_frames consecutive matched
+    frames whose true point moves less than still_step_mm per frame (defaults 0.05, 10).
+    """
+    if not gate_mm > 0:
+        raise ConfigError(f"gate_mm = {gate_mm} is out of range; give a gate > 0 mm")
+    ev = _events_arrays(events)
+    # the pipeline's finish() may end touches with an `up` one frame after the last frame
+    if ev.frame.size and int(ev.frame.max()) > truth.n_frames:
+        raise SourceError(
+            f"events reach frame {int(ev.frame.max())} but the truth has {truth.n_frames} "
+            "frames; give the truth file of this recording"
+        )
+    n = truth.n_frames + 1
+    K = truth.K
+    c_f, h_f = truth.contact_frame, truth.hover_frame
+    c_start, h_start = _slices(c_f, n), _slices(h_f, n)
+    active = ev.state != _STATE_CODE["up"]
+    a_frame, a_id, a_xy = ev.frame[active], ev.id[active], ev.xy[active]
+    a_start = _slices(a_frame, n)
+
+    m = len(c_f)
+    matched_rid = np.full(m, -1, np.int64)  # reported id matched to each contact row
+    q_mm = np.full((m, 3), np.nan)
+    err = np.full(m, np.nan)
+    a_matched = np.zeros(len(a_frame), bool)
+    a_hover_h = np.full(len(a_frame), np.nan)
+    for f in range(n):
+        a0, a1 = a_start[f], a_start[f + 1]
+        if a0 == a1:
+            continue
+        c0, c1 = c_start[f], c_start[f + 1]
+        xy = a_xy[a0:a1]
+        free = np.ones(a1 - a0, bool)
+        if c1 > c0:
+            d, q = surface_error_mm(xy, K, truth.contact_p_mm[c0:c1], truth.contact_n[c0:c1])
+            r, c = match(d, gate_mm)
+            matched_rid[c0 + c] = a_id[a0 + r]
+            q_mm[c0 + c] = q[r, c]
+            err[c0 + c] = d[r, c]
+            a_matched[a0 + r] = True
+            free[r] = False
+        h0, h1 = h_start[f], h_start[f + 1]
+        if h1 > h0 and free.any():
+            d, _ = surface_error_mm(xy[free], K, truth.hover_p_mm[h0:h1], truth.hover_n[h0:h1])
+            near = d <= gate_mm
+            heights = np.where(near, truth.hover_height_mm[h0:h1][None, :], np.inf).min(axis=1)
+            a_hover_h[a0 + np.flatnonzero(free)] = np.where(np.isfinite(heights), heights, np.nan)
+
+    # false tracks: reported ids never matched in any frame
+    true_ids = np.unique(a_id[a_matched])
+    false_mask = ~np.isin(a_id, true_ids)
+    f_ids = np.unique(a_id[false_mask])
+    false_first = np.zeros(len(f_ids), np.int64)
+    false_frames = np.zeros(len(f_ids), np.int64)
+    false_h = np.full(len(f_ids), np.nan)
+    for k, rid in enumerate(f_ids):
+        sel = a_id == rid
+        false_first[k] = a_frame[sel].min()
+        false_frames[k] = np.unique(a_frame[sel]).size
+        hs = a_hover_h[sel]
+        if np.any(np.isfinite(hs)):
+            false_h[k] = np.nanmin(hs)
+
+    # contact episodes
+    ep = _episodes(c_f, truth.contact_id) if m else np.zeros(0, np.int64)
+    n_ep = int(ep.max()) + 1 if m else 0
+    up_sel = ev.state == _STATE_CODE["up"]
+    up_frame_of = dict(zip(ev.id[up_sel].tolist(), ev.frame[up_sel].tolist(), strict=True))
+    out: dict[str, list[Any]] = {k: [] for k in (
+        "id", "first", "last", "found", "visible", "scored", "matched", "down", "lift", "switch", "path",
+        "angle", "steps")}
+    sq_sum, sq_count = 0.0, 0
+    for e in range(n_ep):
+        rows = np.flatnonzero(ep == e)  # sorted by frame (rows are frame-sorted)
+        fr = c_f[rows]
+        rid = matched_rid[rows]
+        ok = rid >= 0
+        p = truth.contact_p_mm[rows]
+        steps = np.linalg.norm(np.diff(p, axis=0), axis=1)
+        out["id"].append(int(truth.contact_id[rows[0]]))
+        out["first"].append(int(fr[0]))
+        out["last"].append(int(fr[-1]))
+        visible = ~truth.contact_occluded[rows]
+        out["found"].append(bool(ok.any()))
+        out["visible"].append(bool(visible.any()))
+        out["scored"].append(int(visible[settle_frames:].sum()))
+        out["matched"].append(int((ok & visible)[settle_frames:].sum()))
+        out["path"].append(float(steps.sum()))
+        if ok.any():
+            out["down"].append(float(fr[ok][0] - fr[0]))
+            ids_seq = rid[ok]
+            out["switch"].append(int(np.count_nonzero(ids_seq[1:] != ids_seq[:-1])))
+            up = up_frame_of.get(int(ids_seq[-1]))
+            out["lift"].append(float(up - (fr[-1] + 1)) if up is not None else math.nan)
+        else:
+            out["down"].append(math.nan)
+            out["switch"].append(0)
+            out["lift"].append(math.nan)
+        # angle error between successive displacement vectors (matched frames only)
+        ang, nst = math.nan, 0
+        if out["path"][-1] >= drag_min_path_mm and np.count_nonzero(ok) >= 3:
+            pt, qt = p[ok], q_mm[rows][ok]
+            dt, dq = np.diff(pt, axis=0), np.diff(qt, axis=0)
+            lt, lq = np.linalg.norm(dt, axis=1), np.linalg.norm(dq, axis=1)
+            use = (lt >= min_step_mm) & (lq > 1e-9)
+            if use.any():
+                cosv = np.sum(dt[use] * dq[use], axis=1) / (lt[use] * lq[use])
+                ang = float(np.degrees(np.arccos(np.clip(cosv, -1.0, 1.0))).mean())
+                nst = int(use.sum())
+        out["angle"].append(ang)
+        out["steps"].append(nst)
+        # jitter: runs of consecutive matched frames where the truth is still
+        still = np.zeros(len(rows), bool)
+        still[1:] = steps < still_step_mm
+        still[0] = len(rows) > 1 and steps[0] < still_step_mm
+        good = still & ok
+        qe = q_mm[rows]
+        for r0, r1 in _runs(good):
+            if r1 - r0 >= min_still_frames:
+                qq = qe[r0:r1]
+                sq_sum += float(np.sum((qq - qq.mean(axis=0)) ** 2))
+                sq_count += r1 - r0
+
+    def arr(key: str, dtype: type) -> np.ndarray:
+        return np.asarray(out[key], dtype=dtype)
+
+    return EvalResult(
+        label=label or str(truth.meta.get("scene", "")),
+        n_frames=truth.n_frames,
+        duration_s=truth.duration_s,
+        ep_id=arr("id", np.int64), ep_first=arr("first", np.int64),
+        ep_last=arr("last", np.int64), ep_found=arr("found", bool),
+        ep_visible=arr("visible", bool),
+        ep_frames_scored=arr("scored", np.int64), ep_frames_matched=arr("matched", np.int64),
+        ep_down_latency=arr("down", float), ep_lift_latency=arr("lift", float),
+        ep_id_switches=arr("switch", np.int64), ep_path_mm=arr("path", float),
+        ep_angle_deg=arr("angle", float), ep_angle_steps=arr("steps", np.int64),
+        errors_mm=err[np.isfinite(err)],
+        false_frame=false_first, false_id=f_ids.astype(np.int64), false_frames=false_frames,
+        false_hover_height_mm=false_h,
+        still_sq_sum_mm2=sq_sum, still_count=sq_count,
+        timing_ms=np.asarray(timing_ms if timing_ms is not None else [], dtype=np.float64),
+    )
+
+
+def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
+    """[start, end) of each run of True in a 1-D boolean array."""
+    d = np.diff(np.concatenate([[0], mask.astype(np.int8), [0]]))
+    return list(zip(np.flatnonzero(d == 1).tolist(), np.flatnonzero(d == -1).tolist(), strict=True))
+
+
+# --- summary -------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class Metrics:
+    """Pooled accuracy over one or more recordings (NaN where nothing was measured).
+
+    contacts: contact episodes the camera can see (the tip is not hidden in every frame);
+    occluded_contacts: episodes hidden throughout (left out of recall, as no camera sees them).
+    contact_recall: found / visible episodes. frame_recall: matched / scored contact frames
+    (visible frames after the debounce).
+    false_touches: false tracks; false_per_min: per minute of recording.
+    false_by_hover: false tracks per band of hover height (:func:`hover_band`, mm) and "other".
+    false_hover_heights_mm: the hover height of each false track that came near a hover.
+    error_*_mm: surface error of matches. id_switches: total.
+    down_latency_* / lift_latency_*: frames (0 = on the first contact frame / ``up`` on the
+    first frame without contact).
+    angle_error_deg: mean angle between successive reported and true displacement vectors over
+    drag steps (the paper's measure).
+    jitter_rms_mm: RMS distance to the mean position of a still finger.
+    ms_per_frame_*: the pipeline's processing time per frame.
+    """
+
+    recordings: int
+    frames: int
+    duration_s: float
+    contacts: int
+    occluded_contacts: int
+    contact_recall: float
+    frame_recall: float
+    false_touches: int
+    false_per_min: float
+    false_by_hover: dict[str, int]
+    false_hover_heights_mm: tuple[float, ...]
+    error_median_mm: float
+    error_p95_mm: float
+    error_mean_mm: float
+    id_switches: int
+    down_latency_median_frames: float
+    down_latency_p95_frames: float
+    lift_latency_median_frames: float
+    lift_latency_p95_frames: float
+    drags: int
+    angle_error_deg: float
+    jitter_rms_mm: float
+    ms_per_frame_median: float
+    ms_per_frame_p95: float
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready: NaN becomes None; floats rounded to 4 decimals."""
+        d: dict[str, Any] = {}
+        for k in self.__dataclass_fields__:
+            v = getattr(self, k)
+            if isinstance(v, float):
+                d[k] = None if not math.isfinite(v) else round(v, 4)
+            else:
+                d[k] = v
+        return d
+
+    def false_from_hover_at_least(self, height_mm: float) -> int:
+        """False touches attributed to fingers hovering at ``height_mm`` or higher."""
+        return sum(h >= height_mm for h in self.false_hover_heights_mm)
+
+
+def _q(a: np.ndarray, q: float) -> float:
+    a = a[np.isfinite(a)]
+    return float(np.percentile(a, q)) if a.size else math.nan
+
+
+HOVER_BANDS_MM = (5.0, 10.0, 25.0, 50.0)
+
+
+def hover_band(h: float) -> str:
+    """The report key of a hover height: "0-5", "5-10", "10-25", "25-50", "50+" (mm), or
+    "other" for NaN (a false touch near no hovering finger)."""
+    if not math.isfinite(h):
+        return "other"
+    edges = (0.0, *HOVER_BANDS_MM)
+    for lo, hi in zip(edges[:-1], edges[1:], strict=True):
+        if h < hi:
+            return f"{lo:g}-{hi:g}"
+    return f"{edges[-1]:g}+"
+
+
+def summarize(results: Sequence[EvalResult]) -> Metrics:
+    """Pool raw results of several recordings into one set of metrics."""
+    if not results:
+        raise ValueError("summarize: no results to pool")
+
+    def cat(name: str) -> np.ndarray:
+        return np.concatenate([np.asarray(getattr(r, name)) for r in results])
+
+    visible = cat("ep_visible")
+    found = cat("ep_found")[visible]
+    scored = int(cat("ep_frames_scored").sum())
+    duration = float(sum(r.duration_s for r in results))
+    fh = cat("false_hover_height_mm")
+    by_hover = {hover_band(h): 0 for h in (0.0, *HOVER_BANDS_MM, math.nan)}
+    for h in fh:
+        by_hover[hover_band(float(h))] += 1
+    errs = cat("errors_mm")
+    angles, steps = cat("ep_angle_deg"), cat("ep_angle_steps")
+    use = np.isfinite(angles) & (steps > 0)
+    angle = float(np.sum(angles[use] * steps[use]) / steps[use].sum()) if use.any() else math.nan
+    sq = sum(r.still_sq_sum_mm2 for r in results)
+    cnt = sum(r.still_count for r in results)
+    timing = cat("timing_ms")
+    return Metrics(
+        recordings=len(results),
+        frames=int(sum(r.n_frames for r in results)),
+        duration_s=duration,
+        contacts=int(found.size),
+        occluded_contacts=int(np.count_nonzero(~visible)),
+        contact_recall=float(found.mean()) if found.size else math.nan,
+        frame_recall=float(cat("ep_frames_matched").sum() / scored) if scored else math.nan,
+        false_touches=int(fh.size),
+        false_per_min=float(fh.size / (duration / 60.0)) if duration > 0 else math.nan,
+        false_by_hover=by_hover,
+        false_hover_heights_mm=tuple(float(h) for h in fh if math.isfinite(h)),
+        error_median_mm=_q(errs, 50),
+        error_p95_mm=_q(errs, 95),
+        error_mean_mm=float(errs.mean()) if errs.size else math.nan,
+        id_switches=int(cat("ep_id_switches").sum()),
+        down_latency_median_frames=_q(cat("ep_down_latency"), 50),
+        down_latency_p95_frames=_q(cat("ep_down_latency"), 95),
+        lift_latency_median_frames=_q(cat("ep_lift_latency"), 50),
+        lift_latency_p95_frames=_q(cat("ep_lift_latency"), 95),
+        drags=int(use.sum()),
+        angle_error_deg=angle,
+        jitter_rms_mm=math.sqrt(sq / cnt) if cnt else math.nan,
+        ms_per_frame_median=_q(timing, 50),
+        ms_per_frame_p95=_q(timing, 95),
+    )

@@ -1,0 +1,471 @@
+"""The evaluation suite: simulator scenes with fixed seeds, rendered on demand, cached, evaluated.
+
+A suite file (TOML; the committed one is ``sim/suites/default.toml``) lists groups of cases; each
+group is a grid of scenes x cameras x distances x surfaces x tilts x seeds::
+
+    [suite]
+    name = "default"
+    gate_mm = 20.0
+
+    [[group]]
+    name = "scenes"
+    scenes = "all"                 # or a list of scene names
+    cameras = ["kinect-v2"]        # or "all"
+    distances_m = [1.0]
+    surfaces = ["plane"]           # default ["plane"]
+    tilts_deg = [0.0]              # default [0.0]
+    seeds = [1]
+    tags = ["quick"]               # optional: subsets a run may select
+
+Recordings are rendered in memory by :func:`depthtouch.sim.render_scene` when a case runs:
+rendering costs 1-3 s of CPU per recording, less than reading a compressed cache file
+(about 1.3 s) and far less than writing one (about 25 s). With ``cache`` (``depthtouch eval
+--suite default --cache``) the recordings and truths are kept under ``<cache>/suite/``
+(``.cache/depthtouch`` unless ``DEPTHTOUCH_CACHE`` is set), keyed by a hash of the case
+parameters, the package version and the simulator's source (a changed simulator renders again),
+for replaying them with other tools. Nothing here is committed but the suite file.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import json
+import os
+import sys
+from collections.abc import Callable, Iterable, Iterator, Sequence
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from .. import __version__
+from ..config import PipelineConfig
+from ..errors import ConfigError
+from ..types import Frame, TouchEvent
+from .metrics import GATE_MM, EvalResult, Metrics, Truth, evaluate, read_truth, summarize
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover - Python 3.10
+    import tomli as tomllib
+
+SUITES_DIR = Path(__file__).parent.parent / "sim" / "suites"
+SURFACES = ("plane", "cylinder-convex", "cylinder-concave")
+
+
+@dataclass(frozen=True)
+class SuiteCase:
+    """One recording of the suite: the keywords of :func:`depthtouch.sim.render_scene`.
+
+    distance_m: camera to surface (m); tilt_deg: surface tilt (deg); fps: frame rate (Hz).
+    """
+
+    scene: str
+    camera: str
+    distance_m: float
+    surface: str = "plane"
+    tilt_deg: float = 0.0
+    seed: int = 0
+    fps: float = 30.0
+    group: str = ""
+
+    @property
+    def label(self) -> str:
+        surf = "" if self.surface == "plane" else f"/{self.surface}"
+        tilt = f"/tilt{self.tilt_deg:g}" if self.tilt_deg else ""
+        return f"{self.scene}/{self.camera}/{self.distance_m:g}m{surf}{tilt}/s{self.seed}"
+
+    def render_kwargs(self) -> dict[str, Any]:
+        return {"camera": self.camera, "distance_m": self.distance_m, "tilt_deg": self.tilt_deg,
+                "surface": self.surface, "seed": self.seed, "fps": self.fps}
+
+    def cache_key(self) -> str:
+        """Hash of the scene parameters, the package version and the simulator source."""
+        params = {"scene": self.scene, **self.render_kwargs(), "noise": True}
+        text = json.dumps(params, sort_keys=True) + __version__ + _sim_digest()
+        return hashlib.sha256(text.encode()).hexdigest()[:16]
+
+
+@dataclass(frozen=True)
+class Suite:
+    """A loaded suite: its cases (deduplicated, in file order) and the tags of each."""
+
+    name: str
+    gate_mm: float
+    cases: tuple[SuiteCase, ...]
+    tags: dict[SuiteCase, frozenset[str]]
+
+    def select(self, subset: str | None = None) -> list[SuiteCase]:
+        """All cases, or those of the groups tagged ``subset``; ConfigError when none is."""
+        if subset is None or subset == "all":
+            return list(self.cases)
+        chosen = [c for c in self.cases if subset in self.tags[c]]
+        if not chosen:
+            known = sorted({t for ts in self.tags.values() for t in ts})
+            raise ConfigError(
+                f"suite {self.name} has no subset {subset!r}; use one of {known + ['all']}"
+            )
+        return chosen
+
+
+# --- loading -------------------------------------------------------------------------------------
+def _sim_names() -> tuple[tuple[str, ...], tuple[str, ...]]:
+    from ..sim import CAMERAS, SCENES
+
+    return tuple(SCENES), tuple(CAMERAS)
+
+
+def _list(group: dict[str, Any], key: str, default: list[Any] | None, where: str,
+          allowed: Sequence[str] | None = None) -> list[Any]:
+    v = group.get(key, default)
+    if v is None:
+        raise ConfigError(f"{where}: {key} is missing; add e.g. {key} = [...]")
+    if v == "all" and allowed is not None:
+        return list(allowed)
+    if not isinstance(v, list) or not v:
+        raise ConfigError(f"{where}: {key} must be a non-empty list (or \"all\")")
+    if allowed is not None:
+        bad = [x for x in v if x not in allowed]
+        if bad:
+            raise ConfigError(f"{where}: {key} has unknown {bad[0]!r}; use {', '.join(allowed)}")
+    return v
+
+
+def _numbers(v: list[Any], key: str, where: str, lo: float, hi: float) -> list[float]:
+    for x in v:
+        if isinstance(x, bool) or not isinstance(x, (int, float)) or not lo <= x <= hi:
+            raise ConfigError(f"{where}: {key} value {x!r} is out of range; allowed [{lo}, {hi}]")
+    return [float(x) for x in v]
+
+
+def suite_from_dict(data: dict[str, Any], where: str = "suite") -> Suite:
+    """Build a suite from parsed TOML; ConfigError (one line) on anything invalid."""
+    scenes, cameras = _sim_names()
+    head = data.get("suite", {})
+    if not isinstance(head, dict):
+        raise ConfigError(f"{where}: [suite] must be a table")
+    name = str(head.get("name", "suite"))
+    gate = head.get("gate_mm", GATE_MM)
+    if isinstance(gate, bool) or not isinstance(gate, (int, float)) or not 0 < gate <= 200:
+        raise ConfigError(f"{where}: gate_mm = {gate!r} is out of range; allowed (0, 200]")
+    groups = data.get("group")
+    if not isinstance(groups, list) or not groups:
+        raise ConfigError(f"{where}: no [[group]] tables; add at least one group of cases")
+    cases: dict[SuiteCase, tuple[SuiteCase, set[str]]] = {}  # keyed without the group name
+    for i, g in enumerate(groups):
+        if not isinstance(g, dict):
+            raise ConfigError(f"{where}: group {i} must be a table")
+        gname = str(g.get("name", f"group{i}"))
+        gw = f"{where}: group {gname}"
+        known = {"name", "scenes", "cameras", "distances_m", "surfaces", "tilts_deg", "seeds",
+                 "fps", "tags"}
+        unknown = sorted(set(g) - known)
+        if unknown:
+            raise ConfigError(
+                f"{gw}: unknown key {unknown[0]!r}; allowed: {', '.join(sorted(known))}"
+            )
+        sc = _list(g, "scenes", None, gw, scenes)
+        cams = _list(g, "cameras", None, gw, cameras)
+        dists = _numbers(_list(g, "distances_m", None, gw), "distances_m", gw, 0.3, 5.0)
+        surfs = _list(g, "surfaces", ["plane"], gw, SURFACES)
+        tilts = _numbers(_list(g, "tilts_deg", [0.0], gw), "tilts_deg", gw, 0.0, 80.0)
+        seeds = _list(g, "seeds", [0], gw)
+        if any(isinstance(s, bool) or not isinstance(s, int) or s < 0 for s in seeds):
+            raise ConfigError(f"{gw}: seeds must be whole numbers >= 0")
+        fps = _numbers([g.get("fps", 30.0)], "fps", gw, 1.0, 1000.0)[0]
+        tags = g.get("tags", [])
+        if not isinstance(tags, list) or not all(isinstance(t, str) for t in tags):
+            raise ConfigError(f"{gw}: tags must be a list of names")
+        for s in sc:
+            for cam in cams:
+                for d in dists:
+                    for surf in surfs:
+                        for tilt in tilts:
+                            for seed in seeds:
+                                c = SuiteCase(s, cam, d, surf, tilt, int(seed), fps, gname)
+                                key = dataclasses.replace(c, group="")
+                                cases.setdefault(key, (c, set()))[1].update(tags)
+    ordered = [c for c, _ in cases.values()]
+    return Suite(name, float(gate), tuple(ordered),
+                 {c: frozenset(t) for c, t in cases.values()})
+
+
+def load_suite(name_or_path: str | Path) -> Suite:
+    """A committed suite by name (``default``) or a suite TOML file by path."""
+    text = str(name_or_path)
+    p = Path(text)
+    if not p.suffix and not p.exists():
+        p = SUITES_DIR / f"{text}.toml"
+        if not p.is_file():
+            known = sorted(q.stem for q in SUITES_DIR.glob("*.toml"))
+            raise ConfigError(f"unknown suite {text!r}; use one of {known} or a .toml path")
+    try:
+        data = tomllib.loads(p.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise ConfigError(f"suite file {p} does not exist; check the path") from None
+    except (OSError, UnicodeDecodeError) as e:
+        raise ConfigError(f"cannot read suite file {p} ({e}); give a UTF-8 TOML file") from e
+    except tomllib.TOMLDecodeError as e:
+        raise ConfigError(f"suite file {p} is not valid TOML ({e}); fix the syntax") from e
+    return suite_from_dict(data, str(p))
+
+
+# --- recordings ----------------------------------------------------------------------------------
+def cache_root() -> Path:
+    """``$DEPTHTOUCH_CACHE`` or ``.cache/depthtouch`` (relative to the working folder)."""
+    return Path(os.environ.get("DEPTHTOUCH_CACHE", ".cache/depthtouch"))
+
+
+_SIM_DIGEST: str | None = None
+
+
+def _sim_digest() -> str:
+    global _SIM_DIGEST
+    if _SIM_DIGEST is None:
+        h = hashlib.sha256()
+        for p in sorted((Path(__file__).parent.parent / "sim").glob("*.py")):
+            h.update(p.name.encode())
+            h.update(p.read_bytes())
+        _SIM_DIGEST = h.hexdigest()
+    return _SIM_DIGEST
+
+
+def recording_paths(case: SuiteCase, cache: Path | None = None) -> tuple[Path, Path]:
+    """Where the cached recording and truth of ``case`` live (they may not exist yet)."""
+    root = (cache or cache_root()) / "suite"
+    stem = f"{case.label.replace('/', '_')}-{case.cache_key()}"
+    return root / f"{stem}.npz", root / f"{stem}.truth.json"
+
+
+def ensure_recording(case: SuiteCase, cache: Path | None = None) -> tuple[Path, Path]:
+    """Render the case unless it is cached; returns (recording .npz, truth .json)."""
+    rec_path, truth_path = recording_paths(case, cache)
+    if rec_path.is_file() and truth_path.is_file():
+        return rec_path, truth_path
+    from ..sim import render_scene, write_recording
+
+    rec_path.parent.mkdir(parents=True, exist_ok=True)
+    rec = render_scene(case.scene, **case.render_kwargs())
+    # the recording's presence marks a complete entry, so it is renamed into place last; the
+    # temporary name is per process because several runs may fill one cache at the same time
+    part = rec_path.with_suffix(f".part{os.getpid()}.npz")
+    try:
+        write_recording(rec, part, truth_path)
+        os.replace(part, rec_path)
+    finally:
+        part.unlink(missing_ok=True)
+    return rec_path, truth_path
+
+
+# --- running -------------------------------------------------------------------------------------
+def _run(pipe_frames: Iterable[Frame], config: PipelineConfig | None
+         ) -> tuple[list[TouchEvent], list[float]]:
+    from ..pipeline import Pipeline
+
+    pipe = Pipeline(config)
+    events: list[TouchEvent] = []
+    timing: list[float] = []
+    for frame in pipe_frames:
+        events.extend(pipe.process(frame))
+        if not pipe.learning and "total" in pipe.last_timing_ms:
+            timing.append(pipe.last_timing_ms["total"])
+    events.extend(pipe.finish())
+    return events, timing
+
+
+def run_pipeline(
+    recording: str | Path, config: PipelineConfig | None = None
+) -> tuple[list[TouchEvent], list[float]]:
+    """Run the sensor over a recording file; returns (events, ms per processed frame)."""
+    from ..sources import open_source
+
+    with open_source(recording) as src:
+        return _run(src.frames(), config)
+
+
+def _sim_frames(rec: Any) -> Iterator[Frame]:
+    for i in range(rec.depth.shape[0]):
+        yield Frame(rec.depth[i], float(rec.timestamps_s[i]), i, rec.depth_scale_m, rec.K)
+
+
+def evaluate_recording(
+    recording: str | Path,
+    truth: str | Path | Truth,
+    config: PipelineConfig | None = None,
+    *,
+    gate_mm: float = GATE_MM,
+    label: str = "",
+) -> EvalResult:
+    """Run the pipeline on one recording file and evaluate it against its truth."""
+    t = truth if isinstance(truth, Truth) else read_truth(truth)
+    events, timing = run_pipeline(recording, config)
+    settle = (config or PipelineConfig()).tracking.down_frames
+    return evaluate(t, events, gate_mm=gate_mm, settle_frames=settle, timing_ms=timing,
+                    label=label)
+
+
+def evaluate_case(
+    case: SuiteCase,
+    configs: Sequence[PipelineConfig | None] = (None,),
+    *,
+    gate_mm: float = GATE_MM,
+    cache: Path | None = None,
+) -> list[EvalResult]:
+    """Evaluate the pipeline with each of ``configs`` on one case (rendered once).
+
+    Without ``cache`` the case is rendered in memory; with it, the recording is read from the
+    cache, or rendered and written there first.
+    """
+    if cache is not None:
+        rec_path, truth_path = ensure_recording(case, cache)
+        return [evaluate_recording(rec_path, truth_path, cfg, gate_mm=gate_mm, label=case.label)
+                for cfg in configs]
+    from ..sim import render_scene
+    from .metrics import truth_from_dict
+
+    rec = render_scene(case.scene, **case.render_kwargs())
+    truth = truth_from_dict(rec.truth, case.label)
+    out = []
+    for cfg in configs:
+        events, timing = _run(_sim_frames(rec), cfg)
+        settle = (cfg or PipelineConfig()).tracking.down_frames
+        out.append(evaluate(truth, events, gate_mm=gate_mm, settle_frames=settle,
+                            timing_ms=timing, label=case.label))
+    return out
+
+
+_Job = tuple[SuiteCase, Sequence[PipelineConfig | None], float, Path | None]
+
+
+def _worker(job: _Job) -> list[EvalResult]:
+    case, configs, gate, cache = job
+    return evaluate_case(case, configs, gate_mm=gate, cache=cache)
+
+
+def run_grid(
+    cases: Sequence[SuiteCase],
+    configs: Sequence[PipelineConfig | None] = (None,),
+    *,
+    gate_mm: float = GATE_MM,
+    workers: int = 1,
+    cache: Path | None = None,
+    progress: Callable[[SuiteCase, EvalResult], None] | None = None,
+) -> list[list[EvalResult]]:
+    """Evaluate every config on every case; ``result[k][i]`` is config k on case i.
+
+    Cases run in ``workers`` processes when > 1; each case is rendered once for all configs.
+    """
+    if workers < 1:
+        raise ConfigError(f"workers = {workers} must be at least 1")
+    jobs: list[_Job] = [(c, list(configs), gate_mm, cache) for c in cases]
+    per_case: list[list[EvalResult]] = []
+
+    def done(c: SuiteCase, rs: list[EvalResult]) -> None:
+        if progress:
+            progress(c, rs[0])
+        per_case.append(rs)
+
+    if workers == 1 or len(cases) < 2:
+        for c, job in zip(cases, jobs, strict=True):
+            done(c, _worker(job))
+    else:
+        with ProcessPoolExecutor(max_workers=min(workers, len(cases))) as ex:
+            for c, rs in zip(cases, ex.map(_worker, jobs), strict=True):
+                done(c, rs)
+    return [[rs[k] for rs in per_case] for k in range(len(configs))]
+
+
+def run_cases(
+    cases: Sequence[SuiteCase],
+    config: PipelineConfig | None = None,
+    *,
+    gate_mm: float = GATE_MM,
+    workers: int = 1,
+    cache: Path | None = None,
+    progress: Callable[[SuiteCase, EvalResult], None] | None = None,
+) -> list[EvalResult]:
+    """Evaluate one config on cases; results in the order of ``cases`` (see :func:`run_grid`)."""
+    return run_grid(cases, [config], gate_mm=gate_mm, workers=workers, cache=cache,
+                    progress=progress)[0]
+
+
+def group_metrics(
+    cases: Sequence[SuiteCase], results: Sequence[EvalResult], by: str
+) -> dict[str, Metrics]:
+    """Pool results by a case attribute (``scene``, ``camera``, ``group``, ``label``) or ``all``."""
+    if by == "all":
+        return {"all": summarize(results)}
+    if by not in ("scene", "camera", "group", "label", "distance_m", "surface"):
+        raise ConfigError(f"cannot group by {by!r}; use scene, camera, group, label or all")
+    groups: dict[str, list[EvalResult]] = {}
+    for c, r in zip(cases, results, strict=True):
+        groups.setdefault(str(getattr(c, by)), []).append(r)
+    return {k: summarize(v) for k, v in groups.items()}
+
+
+def default_workers() -> int:
+    """Processes for a suite run: the usable cores, at most 4 (override with DEPTHTOUCH_WORKERS)."""
+    env = os.environ.get("DEPTHTOUCH_WORKERS")
+    if env:
+        try:
+            n = int(env)
+        except ValueError:
+            raise ConfigError(f"DEPTHTOUCH_WORKERS = {env!r} must be a whole number") from None
+        return max(1, n)
+    try:
+        cores = len(os.sched_getaffinity(0))
+    except AttributeError:  # pragma: no cover - not Linux
+        cores = os.cpu_count() or 1
+    return max(1, min(4, cores))
+
+
+
+# --- commands ------------------------------------------------------------------------------------
+def eval_recording_command(
+    recording: str | Path | None,
+    truth: str | Path | None,
+    *,
+    events_path: str | Path | None = None,
+    config: PipelineConfig | None = None,
+    gate_mm: float = GATE_MM,
+) -> dict[str, Metrics]:
+    """``depthtouch eval REC --truth T``, or ``--events E --truth T`` (no sensor run)."""
+    if truth is None:
+        raise ConfigError("eval needs --truth TRUTH.json for a recording (or use --suite NAME)")
+    t = read_truth(truth)
+    name = Path(str(events_path or recording)).name
+    if events_path is not None:
+        from ..outputs.jsonl import read_events
+
+        settle = (config or PipelineConfig()).tracking.down_frames
+        res = evaluate(t, list(read_events(events_path)), gate_mm=gate_mm,
+                       settle_frames=settle, label=name)
+    elif recording is not None:
+        res = evaluate_recording(recording, t, config, gate_mm=gate_mm, label=name)
+    else:
+        raise ConfigError("eval needs a RECORDING, --events FILE or --suite NAME")
+    return {name: summarize([res])}
+
+
+def eval_suite_command(
+    suite: str | Path,
+    *,
+    subset: str | None = None,
+    by: str = "scene",
+    config: PipelineConfig | None = None,
+    workers: int | None = None,
+    cache: Path | None = None,
+    progress: Callable[[SuiteCase, EvalResult], None] | None = None,
+) -> dict[str, Metrics]:
+    """``depthtouch eval --suite NAME``: metrics pooled by ``by``, plus ``all`` at the end.
+
+    cache: keep the rendered recordings in this folder (None: render in memory only).
+    """
+    s = load_suite(suite)
+    cases = s.select(subset)
+    results = run_cases(cases, config, gate_mm=s.gate_mm, workers=workers or default_workers(),
+                        cache=cache, progress=progress)
+    out = group_metrics(cases, results, by) if by != "all" else {}
+    out["all"] = summarize(results)
+    return out

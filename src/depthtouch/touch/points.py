@@ -1,0 +1,72 @@
+"""Touch points: inside each touch region, the point where the fingertip touches the surface.
+
+Two estimators, selectable by ``TouchPointConfig.method``:
+
+- ``extremity`` (default): the region is attached to the hand (pixels above Tu next to it); the
+  direction from that attachment to the region points along the finger to its tip. The region is
+  grown into neighbouring pixels that pass a lower threshold on a 3x3-smoothed height map (the
+  tip cap that Tl cut away), the front edge of the tip is found along the finger direction, the
+  finger's width behind the tip gives its radius r, and the contact point is r behind the front
+  edge (the centre of the rounded tip, under which it rests on the surface). Sub-pixel.
+- ``paper`` (Lee & Kwon 2019): a search band of Ds pixels inside the bounding-box edge away from
+  the hand; candidates are pixels within Tt of the surface; a candidate counts when its 3x3
+  neighbourhood matches one of the block patterns; the touch point is the centre of the block
+  farthest toward the tip. Integer pixels.
+
+Regions not attached to a hand (a flat object, noise) give no touch point.
+
+Fingertips side by side merge into one region: seen along the finger direction, the region's
+front has one bump per fingertip; bumps at least 1.6 tip radii apart with a dip of at least half
+a radius between them are separate fingers, and the region is cut at the dips.
+
+Speed: the per-region work runs in one compiled call per frame (:mod:`depthtouch.touch.tipkernel`),
+each region on a small window around it; the whole-frame steps (band and regions, hand map) are
+compiled too (:mod:`depthtouch.touch.regions`, :mod:`depthtouch.touch.handmap`).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..config import TouchPointConfig
+from ..types import TouchPoints
+from .handmap import hand_map
+from .regions import HAND_SCALE, BandBounds, Regions
+from .tipkernel import frame_points
+
+
+def find_touch_points(
+    depth: np.ndarray,
+    regions: Regions,
+    bounds: BandBounds,
+    config: TouchPointConfig,
+) -> TouchPoints:
+    """Touch points of the regions of one frame (pure; see the module doc).
+
+    depth: the (prefiltered) uint16 frame; regions: from :func:`regions.band_regions`;
+    bounds: the surface's band bounds.
+    """
+    if len(regions) == 0:
+        return TouchPoints.empty()
+    hands = hand_map(depth, bounds)
+    core = regions.band if regions.band is not None else _core_of(regions, depth.shape)
+    pad = bounds.open_px // 2 if regions.band is not None else 0
+    out = frame_points(
+        depth, bounds.high_lo, bounds.high_hi, hands, HAND_SCALE, bounds.surface_mm,
+        bounds.factor, bounds.tl_mm, bounds.valid, float(bounds.to_mm), core, pad,
+        regions.bbox_xywh, regions.mask_buf, regions.mask_start,
+        float(config.tip_radius_mm / bounds.mm_per_px), 1 if config.method == "paper" else 0,
+        int(config.paper_ds_px), float(config.paper_tt_mm),
+    )
+    if out.shape[0] == 0:
+        return TouchPoints.empty()
+    return TouchPoints(out[:, 0:2].copy(), out[:, 2].copy(), out[:, 3].astype(np.int64),
+                       out[:, 4:6].copy(), out[:, 6] > 0)
+
+
+def _core_of(regions: Regions, shape: tuple[int, ...]) -> np.ndarray:
+    """A band mask made of the regions alone (when the caller has no band mask)."""
+    core = np.zeros(shape[:2], np.uint8)
+    for (x, y, w, h), m in zip(regions.bbox_xywh.tolist(), regions.masks):
+        core[y:y + h, x:x + w] |= m * np.uint8(255)
+    return core

@@ -1,0 +1,393 @@
+"""The compiled per-frame kernel of :mod:`depthtouch.touch.points` (numba, cached on disk).
+
+The steps are those described in :mod:`depthtouch.touch.points`; here they run over all regions
+of a frame in one compiled call, each on a small window around its region: the attached hand,
+the finger's direction, the nearest-region test and the growth into the tip cap are here; the
+estimators inside a region (split, extremity, the paper's pixel) in :mod:`depthtouch.touch.fingertip`.
+Done with numpy and OpenCV, the same work is some 150 small array calls per frame whose Python
+overhead (2-5 us each) costs more than the pixels; compiled, a frame with five touches takes
+about 0.1 ms. ``tests/reference_touchpoints.py`` keeps the array-call version, and the tests
+check that both give the same points.
+
+Layout of the arrays handed in: ``boxes`` (R, 4) int64 region boxes (x, y, w, h); ``masks``
+all region masks (uint8, 1 = in, row-major within its box) one after the other, region i
+starting at ``mask_start[i]``. Output rows: x, y (image px, sub-pixel), height (mm, NaN when
+unknown), area (px), hand x, hand y (px), hand at border (0/1).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+
+from .fingertip import extremity, paper, project, split
+
+N_OUT = 7
+_A, _B = 0.955, 1.3693  # OpenCV's 3x3 distance-transform weights (DIST_L2, mask 3)
+_INF = 1e30
+
+
+@numba.njit(cache=True, nogil=True)
+def _near(mask: np.ndarray, r: int) -> np.ndarray:
+    """1 where a pixel of ``mask`` lies within chessboard distance ``r`` (the (2r+1)^2 square
+    around), from the mask's summed-area table: two passes whatever r."""
+    h, w = mask.shape
+    S = np.zeros((h + 1, w + 1), np.int32)
+    for y in range(h):
+        acc = 0
+        for x in range(w):
+            acc += mask[y, x] != 0
+            S[y + 1, x + 1] = S[y, x + 1] + acc
+    out = np.empty((h, w), np.uint8)
+    for y in range(h):
+        ya, yb = max(0, y - r), min(h, y + r + 1)
+        for x in range(w):
+            xa, xb = max(0, x - r), min(w, x + r + 1)
+            out[y, x] = (S[yb, xb] - S[ya, xb] - S[yb, xa] + S[ya, xa]) > 0
+    return out
+
+
+@numba.njit(cache=True, nogil=True)
+def _chamfer(mask: np.ndarray) -> np.ndarray:
+    """Approximate Euclidean distance (px) to the nearest pixel of ``mask`` (3x3 chamfer)."""
+    h, w = mask.shape
+    d = np.full((h, w), _INF, np.float64)
+    for y in range(h):
+        for x in range(w):
+            if mask[y, x]:
+                d[y, x] = 0.0
+                continue
+            v = d[y, x]
+            if x > 0:
+                v = min(v, d[y, x - 1] + _A)
+            if y > 0:
+                v = min(v, d[y - 1, x] + _A)
+                if x > 0:
+                    v = min(v, d[y - 1, x - 1] + _B)
+                if x < w - 1:
+                    v = min(v, d[y - 1, x + 1] + _B)
+            d[y, x] = v
+    for y in range(h - 1, -1, -1):
+        for x in range(w - 1, -1, -1):
+            v = d[y, x]
+            if x < w - 1:
+                v = min(v, d[y, x + 1] + _A)
+            if y < h - 1:
+                v = min(v, d[y + 1, x] + _A)
+                if x < w - 1:
+                    v = min(v, d[y + 1, x + 1] + _B)
+                if x > 0:
+                    v = min(v, d[y + 1, x - 1] + _B)
+            d[y, x] = v
+    return d
+
+
+@numba.njit(cache=True, nogil=True)
+def _smooth_heights(depth: np.ndarray, surf: np.ndarray, fact: np.ndarray, valid: np.ndarray,
+                    to_mm: float, x0: int, y0: int, h: int, w: int) -> np.ndarray:
+    """Height (mm) over the window, 3x3 mean of the known pixels of the window; NaN where fewer
+    than 3 of 9 are known. (Sums over a copy with a ring of unknown pixels: no edge cases.)"""
+    hm = np.zeros((h + 2, w + 2), np.float64)
+    ok = np.zeros((h + 2, w + 2), np.float64)
+    for y in range(h):
+        dr, vr, sr, fr = depth[y0 + y], valid[y0 + y], surf[y0 + y], fact[y0 + y]
+        for x in range(w):
+            d = dr[x0 + x]
+            if d > 0 and vr[x0 + x]:
+                hm[y + 1, x + 1] = (sr[x0 + x] - d * to_mm) * fr[x0 + x]
+                ok[y + 1, x + 1] = 1.0
+    rs = np.empty((h + 2, w), np.float64)
+    rc = np.empty((h + 2, w), np.float64)
+    for y in range(h + 2):
+        a, c, sa, sc = hm[y], ok[y], rs[y], rc[y]
+        for x in range(w):
+            sa[x] = a[x] + a[x + 1] + a[x + 2]
+            sc[x] = c[x] + c[x + 1] + c[x + 2]
+    out = np.empty((h, w), np.float64)
+    for y in range(h):
+        for x in range(w):
+            num = rs[y, x] + rs[y + 1, x] + rs[y + 2, x]
+            den = rc[y, x] + rc[y + 1, x] + rc[y + 2, x]
+            out[y, x] = num / den if den >= 2.5 else np.nan  # at least 3 of 9 known
+    return out
+
+
+@numba.njit(cache=True, nogil=True)
+def _attach(near: np.ndarray, depth: np.ndarray, high_lo: np.ndarray,
+            high_hi: np.ndarray, hands: np.ndarray, scale: int, x0: int, y0: int
+            ) -> tuple[int, float, float, bool]:
+    """Hand pixels among the ``near`` pixels (those next to a mask, see :func:`_near`): count,
+    mean x, y (window), and whether any belongs to an arm reaching in from the border (hand map
+    level 2)."""
+    h, w = near.shape
+    sh, sw = hands.shape
+    n = 0
+    sx = 0.0
+    sy = 0.0
+    border = False
+    for y in range(h):
+        for x in range(w):
+            if not near[y, x]:
+                continue
+            d = depth[y0 + y, x0 + x]
+            if d < high_lo[y0 + y, x0 + x] or d > high_hi[y0 + y, x0 + x]:
+                continue  # not above Tu
+            cy, cx = (y0 + y) // scale, (x0 + x) // scale
+            if cy >= sh or cx >= sw:
+                continue
+            lev = hands[cy, cx]
+            if lev >= 1:
+                n += 1
+                sx += x
+                sy += y
+                if lev == 2:
+                    border = True
+    if n == 0:
+        return 0, 0.0, 0.0, False
+    return n, sx / n, sy / n, border
+
+
+@numba.njit(cache=True, nogil=True)
+def frame_points(
+    depth: np.ndarray, high_lo: np.ndarray, high_hi: np.ndarray, hands: np.ndarray, scale: int,
+    surf: np.ndarray, fact: np.ndarray, tl: np.ndarray, valid: np.ndarray, to_mm: float,
+    core: np.ndarray, open_pad: int, boxes: np.ndarray, masks: np.ndarray, mask_start: np.ndarray,
+    r0: float, method: int, paper_ds: int, paper_tt: float,
+) -> np.ndarray:
+    """Touch points of all regions of a frame: (N, 7) rows (see the module doc).
+
+    Each region is worked on in a window 2 rr + 2 px around its box (the growth reaches 2 rr,
+    the hand attaches within 2 px); the band 3 r0 + 3 px around it is looked at only when other
+    regions (or other fingertips of the same region) are near, for the nearest-region test.
+    """
+    H, W = depth.shape
+    R = boxes.shape[0]
+    rr = max(1, int(np.rint(r0)))
+    m_in = 2 * rr + 2
+    m_out = int(math.ceil(3.0 * r0)) + 3
+    out = np.empty((4 * R + 4, N_OUT))
+    n_out = 0
+    for i in range(R):
+        bx, by, bw, bh = boxes[i, 0], boxes[i, 1], boxes[i, 2], boxes[i, 3]
+        x0, y0 = max(0, bx - m_in), max(0, by - m_in)
+        x1, y1 = min(W, bx + bw + m_in), min(H, by + bh + m_in)
+        h, w = y1 - y0, x1 - x0
+        reg = np.zeros((h, w), np.uint8)
+        area = 0
+        k = mask_start[i]
+        for yy in range(bh):
+            for xx in range(bw):
+                if masks[k + yy * bw + xx]:
+                    reg[by - y0 + yy, bx - x0 + xx] = 1
+                    area += 1
+        if area == 0:
+            continue
+        # --- the hand: hand pixels next to the region (a flat object or noise has none) ----
+        near = _near(reg, 2)
+        n_att, hx, hy, border = _attach(near, depth, high_lo, high_hi, hands, scale, x0, y0)
+        if n_att < 3:
+            continue
+        ex = np.empty(area, np.int64)
+        ey = np.empty(area, np.int64)
+        k = 0
+        for y in range(h):
+            for x in range(w):
+                if reg[y, x]:
+                    ex[k], ey[k] = x, y
+                    k += 1
+        cx, cy = ex.mean(), ey.mean()
+        dx, dy = cx - hx, cy - hy
+        norm = math.hypot(dx, dy)
+        if norm < 1e-6:
+            continue
+        ux, uy = dx / norm, dy / norm
+        s, lat = project(ex, ey, hx, hy, ux, uy)
+        along = s.max() - s.min() + 1.0
+        across = lat.max() - lat.min() + 1.0
+        # a thin strip along the side of something raised: an edge, not a finger
+        if along < r0 or (along < 1.5 * r0 and across > 3.0 * along):
+            continue
+        part_of = split(lat, s, r0) if area > 10.0 * r0 * r0 else np.zeros(area, np.int64)
+        n_parts = part_of.max() + 1
+        # other regions near (or other fingertips of this one): the finger grows only into
+        # pixels nearer to it than to them
+        ox0, oy0 = max(0, bx - m_out), max(0, by - m_out)
+        ox1, oy1 = min(W, bx + bw + m_out), min(H, by + bh + m_out)
+        if R > 1 or n_parts > 1:
+            band = _band_near(core, open_pad, reg, x0, y0, ox0, oy0, ox1, oy1, n_parts > 1)
+        else:  # alone in the frame: specks of noise nearby do not count
+            band = np.zeros((0, 0), np.uint8)
+        hs = _smooth_heights(depth, surf, fact, valid, to_mm, x0, y0, h, w)
+        for p in range(n_parts):
+            part = np.zeros((h, w), np.uint8)
+            n_p = 0
+            sx = 0.0
+            sy = 0.0
+            for j in range(area):
+                if part_of[j] == p:
+                    part[ey[j], ex[j]] = 1
+                    n_p += 1
+                    sx += ex[j]
+                    sy += ey[j]
+            if n_p == 0:
+                continue
+            phx, phy, pborder = hx, hy, border
+            if n_parts > 1:
+                na, ax, ay, ab = _attach(_near(part, 2), depth, high_lo, high_hi, hands, scale,
+                                         x0, y0)
+                if na >= 3:
+                    phx, phy, pborder = ax, ay, ab
+            if method == 1:
+                px_, py_, ph, ok = paper(part, hs, phx, phy, paper_ds, paper_tt)
+                if not ok:
+                    continue
+            else:
+                ddx, ddy = sx / n_p - phx, sy / n_p - phy
+                nn = math.hypot(ddx, ddy)
+                if nn < 1e-6:
+                    continue
+                own = _own(part, band, x0 - ox0, y0 - oy0)
+                fx, fy = _grow(part, own, hs, tl, x0, y0, rr)
+                px_, py_, ph = extremity(fx, fy, hs, phx, phy, ddx / nn, ddy / nn, r0)
+            out[n_out, 0] = px_ + x0
+            out[n_out, 1] = py_ + y0
+            out[n_out, 2] = ph
+            out[n_out, 3] = n_p
+            out[n_out, 4] = phx + x0
+            out[n_out, 5] = phy + y0
+            out[n_out, 6] = 1.0 if pborder else 0.0
+            n_out += 1
+            if n_out == out.shape[0]:
+                return out[:n_out]
+    return out[:n_out]
+
+
+@numba.njit(cache=True, nogil=True)
+def _band_near(core: np.ndarray, pad: int, reg: np.ndarray, x0: int, y0: int,
+               ox0: int, oy0: int, ox1: int, oy1: int, force: bool) -> np.ndarray:
+    """The band (the eroded ``core`` dilated by ``pad``) over the outer window [oy0:oy1,
+    ox0:ox1], or an empty (0, 0) array when it holds nothing but the region itself (``reg``,
+    at x0, y0) and ``force`` is False."""
+    H, W = core.shape
+    h, w = reg.shape
+    if not force:
+        # anything else there: more core pixels in the window than in the region
+        n_all = 0
+        for gy in range(oy0, oy1):
+            row = core[gy]
+            for gx in range(ox0, ox1):
+                n_all += row[gx] != 0
+        n_reg = 0
+        for y in range(h):
+            for x in range(w):
+                if reg[y, x] and core[y0 + y, x0 + x]:
+                    n_reg += 1
+        if n_all == n_reg:
+            return np.zeros((0, 0), np.uint8)
+    band = np.zeros((oy1 - oy0, ox1 - ox0), np.uint8)
+    for gy in range(oy0, oy1):
+        for gx in range(ox0, ox1):
+            if not core[gy, gx]:
+                continue
+            for yy in range(max(oy0, gy - pad), min(oy1, gy + pad + 1)):
+                for xx in range(max(ox0, gx - pad), min(ox1, gx + pad + 1)):
+                    band[yy - oy0, xx - ox0] = 1
+    return band
+
+
+@numba.njit(cache=True, nogil=True)
+def _own(part: np.ndarray, band: np.ndarray, dx: int, dy: int) -> np.ndarray:
+    """Pixels of the part's window nearer to the part than to any other band pixel (all, when
+    ``band`` is empty); the part's window sits at (dx, dy) in the band's."""
+    h, w = part.shape
+    own = np.ones((h, w), np.bool_)
+    if band.shape[0] == 0:
+        return own
+    bh, bw = band.shape
+    mine = np.zeros((bh, bw), np.uint8)
+    for y in range(h):
+        for x in range(w):
+            if part[y, x]:
+                mine[y + dy, x + dx] = 1
+    others = np.zeros((bh, bw), np.uint8)
+    n_o = 0
+    for y in range(bh):
+        for x in range(bw):
+            if band[y, x] and not mine[y, x]:
+                others[y, x] = 1
+                n_o += 1
+    if n_o == 0:
+        return own
+    d_own = _chamfer(mine)
+    d_oth = _chamfer(others)
+    for y in range(h):
+        for x in range(w):
+            own[y, x] = d_own[y + dy, x + dx] <= d_oth[y + dy, x + dx]
+    return own
+
+
+@numba.njit(cache=True, nogil=True)
+def _grow(part: np.ndarray, own: np.ndarray, hs: np.ndarray, tl: np.ndarray, x0: int, y0: int,
+          rr: int) -> tuple[np.ndarray, np.ndarray]:
+    """The finger's pixels near its tip: the part grown into raised pixels within 2 rr of it
+    that are its ``own``, and connected to it (4-neighbours)."""
+    h, w = part.shape
+    reach = _near(part, 2 * rr)
+    grown = np.zeros((h, w), np.uint8)
+    for y in range(h):
+        for x in range(w):
+            if part[y, x]:
+                grown[y, x] = 1
+            elif reach[y, x] and own[y, x]:
+                v = hs[y, x]
+                if v == v and v > max(0.5 * tl[y0 + y, x0 + x], 2.0):
+                    grown[y, x] = 1
+    # keep what is connected to the part
+    stack_y = np.empty(h * w, np.int64)
+    stack_x = np.empty(h * w, np.int64)
+    top = 0
+    for y in range(h):
+        for x in range(w):
+            if part[y, x]:
+                grown[y, x] = 2
+                stack_y[top], stack_x[top] = y, x
+                top += 1
+    fx = np.empty(h * w, np.int64)
+    fy = np.empty(h * w, np.int64)
+    n = 0
+    while top > 0:
+        top -= 1
+        y, x = stack_y[top], stack_x[top]
+        fx[n], fy[n] = x, y
+        n += 1
+        for k in range(4):
+            yy = y + (1 if k == 0 else -1 if k == 1 else 0)
+            xx = x + (1 if k == 2 else -1 if k == 3 else 0)
+            if 0 <= yy < h and 0 <= xx < w and grown[yy, xx] == 1:
+                grown[yy, xx] = 2
+                stack_y[top], stack_x[top] = yy, xx
+                top += 1
+    return fx[:n], fy[:n]
+
+
+def warm_up() -> None:
+    """Compile (or load from the on-disk cache) every kernel on a tiny frame, so that the
+    first real frame does not wait for the compiler (seconds on a first run)."""
+    h, w = 32, 32
+    depth = np.full((h, w), 1000, np.uint16)
+    depth[10:20, 10:20] = 990
+    lo = np.full((h, w), 975, np.uint16)
+    hi = np.full((h, w), 995, np.uint16)
+    f32 = np.ones((h, w), np.float32)
+    valid = np.ones((h, w), np.bool_)
+    core = np.zeros((h, w), np.uint8)
+    boxes = np.array([[10, 10, 10, 10]], np.int64)
+    masks = np.ones(100, np.uint8)
+    start = np.zeros(1, np.int64)
+    hands = np.zeros((h // 4, w // 4), np.uint8)
+    hands[2:5, 2:5] = 2
+    for method in (0, 1):
+        frame_points(depth, lo, hi, hands, 4, f32 * 1000, f32, f32 * 4, valid, 1.0, core, 1,
+                     boxes, masks, start, 3.0, method, 6, 18.0)

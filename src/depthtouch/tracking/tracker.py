@@ -1,0 +1,351 @@
+"""Tracking: stable ids across frames, with down / move / up.
+
+Touch points are matched to tracks by optimal assignment (``scipy.optimize.linear_sum_assignment``)
+on their distance, gated (mm when the surface scale is known, px otherwise): contacts that are down
+first, then pending ones on the points left. Fingertips side by side whose regions merged into one
+point (a region about twice a tip's area) keep their ids and move with that point, each at its
+place in the pair; a contact hidden in a neighbour's region is held. A new contact goes
+``down`` after ``down_frames`` consecutive frames; a contact missing for ``up_frames`` consecutive
+frames goes ``up`` with its last position (it is reported as ``move`` at that position during the
+grace frames). Height hysteresis: a tip must come below ``touch_on_mm`` to start a contact, and a
+contact lasts while its tip stays below ``touch_off_mm``, so that a finger resting at the noise
+limit does not flicker. Ids are never reused within a run.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import NamedTuple
+
+import numpy as np
+from scipy.optimize import linear_sum_assignment
+
+from ..config import TouchPointConfig, TrackingConfig
+from ..types import TouchPoints, TouchState
+
+_BIG = 1e9
+# cost matrices up to this many entries are built with floats, larger ones with arrays (the
+# break-even on one core: about 10 tracks x 10 points when they are close together)
+_PY_COST_MAX = 100
+
+XY = tuple[float, float]
+
+
+@dataclass(slots=True)
+class Track:
+    """State of one tracked contact (pending until it goes down; id -1 meanwhile).
+
+    Positions are pairs of plain floats: a frame updates a handful of tracks, and a numpy call on
+    a 2-vector costs as much as twenty float operations. xy_px: image px; pos: xy_px times the
+    tracker's scale (mm when known); vel: per frame, in the units of pos.
+    """
+
+    xy_px: XY
+    pos: XY
+    height_mm: float
+    area_px: int
+    id: int = -1
+    seen: int = 1
+    missing: int = 0
+    active: bool = False
+    vel: XY = (0.0, 0.0)
+    out_xy: XY | None = None  # last reported (filtered) position, px
+    hand_at_border: bool = True
+    merged: int = 0  # consecutive frames hidden in a neighbour's region
+
+    def predicted(self) -> XY:
+        """Where the contact should be this frame (constant velocity per frame)."""
+        k = 1 + self.missing
+        return (self.pos[0] + self.vel[0] * k, self.pos[1] + self.vel[1] * k)
+
+
+def _nearest(row: list[float]) -> int:
+    """Index of the smallest entry, the first of equal ones (as ``np.argmin``)."""
+    return row.index(min(row))
+
+
+def _assign(
+    cost: list[list[float]], rows: list[int], cols: list[int], nearest: list[int]
+) -> dict[int, int]:
+    """Optimal assignment of tracks ``rows`` to points ``cols`` (increasing) on ``cost`` (pairs
+    < _BIG); ``nearest``: :func:`_nearest` of every row of ``cost``."""
+    if not rows or not cols:
+        return {}
+    if len(cols) == len(cost[0]):  # all the points
+        sub = [cost[r] for r in rows]
+        best = [nearest[r] for r in rows]
+    else:
+        sub = [[cost[r][c] for c in cols] for r in rows]
+        best = [_nearest(row) for row in sub]
+    if len(set(best)) == len(best):
+        # every track's nearest point is its own: that is the optimum (no assignment can cost
+        # less than each track's own minimum), found without the solver
+        return {r: cols[b] for r, b, row in zip(rows, best, sub, strict=True) if row[b] < _BIG}
+    ri, ci = linear_sum_assignment(np.array(sub))
+    return {rows[a]: cols[b] for a, b in zip(ri.tolist(), ci.tolist(), strict=True)
+            if sub[a][b] < _BIG}
+
+
+class TrackUpdate(NamedTuple):
+    """What happened to a track this frame; ``measured`` is False during grace and on up.
+
+    (A named tuple: immutable like a frozen dataclass, at half the cost to make.)
+    """
+
+    track: Track
+    state: TouchState
+    measured: bool
+
+
+@dataclass
+class Tracker:
+    """Assigns ids to touch points frame after frame; ``update`` then ``reset`` to start over.
+
+    scale: units of ``pos`` per pixel used for gating: mm per px when known (gate_mm applies),
+    None to gate in pixels (gate_px).
+    """
+
+    config: TrackingConfig = field(default_factory=TrackingConfig)
+    touch: TouchPointConfig = field(default_factory=TouchPointConfig)
+    scale_mm_per_px: float | None = None
+    next_id: int = 1
+    tracks: list[Track] = field(default_factory=list)
+
+    def reset(self) -> None:
+        """Forget all tracks; ids keep increasing (never reused within a run)."""
+        self.tracks = []
+
+    @property
+    def gate(self) -> float:
+        return self.config.gate_mm if self.scale_mm_per_px is not None else self.config.gate_px
+
+    @property
+    def merge_near(self) -> float:
+        """Distance within which a contact may be hidden in a neighbour's region (gate units)."""
+        mm = self.config.merge_mm
+        return mm if self.scale_mm_per_px is not None else mm / 2.0
+
+    def update(self, points: TouchPoints) -> list[TrackUpdate]:
+        """Advance one frame with this frame's touch points; returns the reported tracks."""
+        tracks = self.tracks
+        n_t, n_p = len(tracks), len(points)
+        if not n_t and not n_p:
+            return []
+        # a handful of points: plain floats cost less than array calls here (same arithmetic)
+        scale = self.scale_mm_per_px if self.scale_mm_per_px is not None else 1.0
+        xy: list[XY] = list(map(tuple, points.xy_px.tolist()))
+        pos: list[XY] = [(x * scale, y * scale) for x, y in xy]
+        h = points.height_mm.tolist()
+        area = points.area_px.tolist()
+        hb = points.hand_at_border
+        border: list[bool] = ([True] * n_p if hb is None else hb.tolist() if hb.dtype.kind == "b"
+                              else [bool(b) for b in hb.tolist()])
+        # (an unknown height, NaN, compares False: never a touch)
+        off, on = self.touch.touch_off_mm, self.touch.touch_on_mm
+        ok_cont = [v <= off for v in h]
+        ok_new = [v <= on for v in h]
+        matched_t: dict[int, int] = {}
+        groups: dict[int, list[int]] = {}
+        if n_t and n_p:
+            cost = self._cost(pos, ok_cont, ok_new)
+            # Contacts that are down are served first, pending ones get what is left: optimal
+            # assignment maximises the number of pairs, so in one joint assignment a noise blip
+            # or a finger just arriving next to a contact could take the contact's point and
+            # push it onto a farther one (or out, to come back with a new id).
+            nearest = [_nearest(row) for row in cost]
+            act = [i for i, t in enumerate(tracks) if t.active]
+            matched_t = _assign(cost, act, list(range(n_p)), nearest)
+            groups = self._merge_groups(cost, nearest, matched_t, act, area)
+            for members in groups.values():
+                for i in members:
+                    matched_t.pop(i, None)
+            if len(act) < n_t:
+                taken = {*matched_t.values(), *groups}
+                pending = [i for i, t in enumerate(tracks) if not t.active]
+                free = [j for j in range(n_p) if j not in taken]
+                matched_t.update(_assign(cost, pending, free, nearest))
+        out: list[TrackUpdate] = []
+        keep: list[Track] = []
+        used = set(matched_t.values()) | set(groups)
+        shift: dict[int, tuple[int, XY]] = {}
+        for k, members in groups.items():
+            cx, cy = np.mean([tracks[i].pos for i in members], axis=0).tolist()
+            step = (pos[k][0] - cx, pos[k][1] - cy)
+            for i in members:
+                shift[i] = (k, step)
+        down_frames = self.config.down_frames
+        for i, t in enumerate(tracks):
+            j = matched_t.get(i)
+            if i in shift:
+                # fingertips side by side in one region: its point is where they are together;
+                # each keeps its place in the pair and moves with it (no id jumps to the other)
+                k, (sx, sy) = shift[i]
+                m = 1 + t.missing
+                (vx, vy), (ox, oy) = t.vel, t.pos
+                t.vel = (0.5 * vx + 0.5 * (sx / m), 0.5 * vy + 0.5 * (sy / m))
+                px, py = ox + sx, oy + sy
+                t.pos = (px, py)
+                t.xy_px = (px / scale, py / scale)
+                t.height_mm = float(h[k])
+                t.hand_at_border = border[k]
+                t.seen += 1
+                t.missing = 0
+                t.merged += 1
+                out.append(TrackUpdate(t, "move", True))
+                keep.append(t)
+                continue
+            if j is not None:
+                m = 1 + t.missing
+                (vx, vy), (ox, oy), (px, py) = t.vel, t.pos, pos[j]
+                # smoothed velocity, from rest: a noisy touch point (or, just after touch-down, a
+                # neighbour's tip arriving in the region) must not throw the prediction off
+                t.vel = (0.5 * vx + 0.5 * ((px - ox) / m), 0.5 * vy + 0.5 * ((py - oy) / m))
+                t.xy_px, t.pos = xy[j], pos[j]
+                t.height_mm, t.area_px = float(h[j]), int(area[j])
+                t.hand_at_border = border[j]
+                t.seen += 1
+                t.missing = 0
+                t.merged = 0
+                if t.active:
+                    out.append(TrackUpdate(t, "move", True))
+                elif t.seen >= down_frames:
+                    self._activate(t)
+                    out.append(TrackUpdate(t, "down", True))
+                keep.append(t)
+            elif t.active:
+                if self._merged(t, pos, used) and t.merged < self.config.merge_frames:
+                    # a fingertip side by side with a touching neighbour merged into its region:
+                    # it is hidden, not lifted; hold it where it was
+                    t.merged += 1
+                    out.append(TrackUpdate(t, "move", False))
+                    keep.append(t)
+                    continue
+                t.missing += 1
+                if t.missing >= self.config.up_frames:
+                    out.append(TrackUpdate(t, "up", False))
+                else:
+                    out.append(TrackUpdate(t, "move", False))
+                    keep.append(t)
+            # an unmatched pending track is dropped (it never went down)
+        for j in range(n_p):
+            if j in used or not ok_new[j]:
+                continue
+            t = Track(xy[j], pos[j], float(h[j]), int(area[j]), hand_at_border=border[j])
+            if down_frames <= 1:
+                self._activate(t)
+                out.append(TrackUpdate(t, "down", True))
+            keep.append(t)
+        self.tracks = keep
+        return out
+
+    def _cost(self, pos: list[XY], ok_cont: list[bool], ok_new: list[bool]) -> list[list[float]]:
+        """Gated distance of each track to each point (_BIG where it may not take the point).
+
+        The distance is to where the contact should be, or to where it was, whichever is nearer:
+        a sharp turn must not be lost to a prediction that overshoots. A contact down may take a
+        point below touch_off_mm, a pending one only below touch_on_mm.
+        """
+        if len(self.tracks) * len(pos) > _PY_COST_MAX:
+            return self._cost_array(pos, ok_cont, ok_new)
+        gate = self.gate
+        # a point farther than this on one axis, from both the prediction and the last position,
+        # is beyond the gate: the margin keeps that exact through the rounding of the distance
+        far = gate * (1.0 + 1e-6)
+        sqrt = math.sqrt
+        cost: list[list[float]] = []
+        for t in self.tracks:
+            lx, ly = t.pos
+            k = 1 + t.missing
+            px, py = lx + t.vel[0] * k, ly + t.vel[1] * k
+            row: list[float] = []
+            for (x, y), ok in zip(pos, ok_cont if t.active else ok_new, strict=True):
+                ax, bx = px - x, lx - x
+                ay, by = py - y, ly - y
+                if (not ok or (ax > far and bx > far) or (ax < -far and bx < -far)
+                        or (ay > far and by > far) or (ay < -far and by < -far)):
+                    row.append(_BIG)
+                    continue
+                a, b = ax * ax + ay * ay, bx * bx + by * by
+                d = sqrt(a if a <= b else b)
+                row.append(d if d <= gate else _BIG)
+            cost.append(row)
+        return cost
+
+    def _cost_array(
+        self, pos: list[XY], ok_cont: list[bool], ok_new: list[bool]
+    ) -> list[list[float]]:
+        """:meth:`_cost` in array operations: the same numbers, faster for many touches."""
+        last = np.array([t.pos for t in self.tracks])
+        pred = last + np.array([(t.vel[0] * (1 + t.missing), t.vel[1] * (1 + t.missing))
+                                for t in self.tracks])
+        p = np.array(pos)
+        dp, dl = pred[:, None, :] - p[None, :, :], last[:, None, :] - p[None, :, :]
+        dist = np.sqrt(np.minimum((dp * dp).sum(axis=2), (dl * dl).sum(axis=2)))
+        is_active = np.array([t.active for t in self.tracks])
+        allowed = np.where(is_active[:, None], np.array(ok_cont)[None, :], np.array(ok_new)[None, :])
+        cost: list[list[float]] = np.where(allowed & (dist <= self.gate), dist, _BIG).tolist()
+        return cost
+
+    def _merge_groups(
+        self,
+        cost: list[list[float]],
+        nearest: list[int],
+        matched_t: dict[int, int],
+        act: list[int],
+        area_px: list[int],
+    ) -> dict[int, list[int]]:
+        """Points whose region holds the fingertips of several contacts side by side -> them.
+
+        A contact down is hidden in point k, matched to another contact, when k is the nearest
+        point it may take (within ``merge_mm``) but it was left without a point or pushed onto a
+        farther one, and k's region is ``merge_area_ratio`` times as large as the largest of
+        their fingertips (two tips side by side make one region of about twice the area; a
+        finger that only moved keeps its area).
+        """
+        ratio = self.config.merge_area_ratio
+        if ratio <= 0 or len(act) < 2 or not matched_t:
+            return {}
+        owner = {j: i for i, j in matched_t.items()}
+        near = self.merge_near
+        cand: dict[int, list[int]] = {}
+        for b in act:
+            row, k = cost[b], nearest[b]
+            a = owner.get(k)
+            j = matched_t.get(b)
+            if a is None or a == b or row[k] > near:
+                continue
+            if j is not None and row[j] <= row[k]:
+                continue
+            cand.setdefault(k, [a]).append(b)
+        groups: dict[int, list[int]] = {}
+        grouped: set[int] = set()
+        for k, members in cand.items():
+            members = [i for i in members if i not in grouped]  # one group per contact
+            tracks = [self.tracks[i] for i in members]
+            if (len(members) > 1 and all(t.merged < self.config.merge_frames for t in tracks)
+                    and area_px[k] >= ratio * max(t.area_px for t in tracks)):
+                groups[k] = members
+                grouped.update(members)
+        return groups
+
+    def _merged(self, t: Track, pos: list[XY], used: set[int]) -> bool:
+        """Is a point matched this frame within a finger width of this (unmatched) track?"""
+        near = self.merge_near
+        tx, ty = t.pos
+        for j in used:
+            dx, dy = pos[j][0] - tx, pos[j][1] - ty
+            if math.sqrt(dx * dx + dy * dy) <= near:
+                return True
+        return False
+
+    def _activate(self, t: Track) -> None:
+        t.active = True
+        t.id = self.next_id
+        self.next_id += 1
+
+    def end_all(self) -> list[TrackUpdate]:
+        """End every active contact (``up``), e.g. at the end of a stream or on a surface reset."""
+        out = [TrackUpdate(t, "up", False) for t in self.tracks if t.active]
+        self.tracks = []
+        return out

@@ -1,0 +1,173 @@
+"""The surface follows a changing room: objects, drift and bumps; fingers are never absorbed."""
+
+import numpy as np
+import pytest
+
+from depthtouch.config import PipelineConfig
+from depthtouch.pipeline import Pipeline
+from depthtouch.types import Frame
+from synth import K_640, Finger, render_heights
+
+MM_PER_PX = 1000 / 600
+FPS = 30.0
+
+
+def frames(script, *, seed=0, noise=1.5, plane=None):
+    """Yield Frames: 45 empty ones, then one per script entry (a callable k -> heights)."""
+    rng = np.random.default_rng(seed)
+    bank = rng.normal(0, noise, (17, 480, 640)).astype(np.float32)  # cycled: cheap, still noisy
+    for i in range(45 + len(script)):
+        hm = np.zeros((480, 640), np.float32) if i < 45 else script[i - 45](i - 45)
+        base = 1000.0 if plane is None else plane(i)
+        d = base - hm + bank[i % 17]
+        yield Frame(np.clip(np.rint(d), 0, 65535).astype(np.uint16), i / FPS, i, 0.001, K_640)
+
+
+def run(script, config=None, **kw):
+    p = Pipeline(config, surface_frames=45)
+    log = [(f, p.process(f)) for f in frames(script, **kw)]
+    return p, log
+
+
+def box(hm, x0, y0, x1, y1, height):
+    hm = hm.copy()
+    hm[y0:y1, x0:x1] = np.maximum(hm[y0:y1, x0:x1], height)
+    return hm
+
+
+def test_object_put_down_is_absorbed_and_removal_restores():
+    empty = np.zeros((480, 640), np.float32)
+    with_box = box(empty, 250, 200, 350, 260, 60.0)  # a 60 mm tall box
+    script = [lambda k: with_box] * 90 + [lambda k: empty] * 90  # 3 s on, 3 s off
+    p, log = run(script)
+    assert p._bounds is not None
+    # after the box stood 3 s it was surface; after 3 s without it the table is back
+    s = p._bounds.surface_mm
+    assert abs(float(s[230, 300]) - 1000.0) < 3.0
+    assert not any(evs for _, evs in log)
+
+
+def test_object_becomes_surface_within_two_seconds():
+    empty = np.zeros((480, 640), np.float32)
+    with_box = box(empty, 250, 200, 350, 260, 60.0)
+    p = Pipeline(surface_frames=45)
+    t_absorbed = None
+    for f in frames([lambda k: with_box] * 120):
+        p.process(f)
+        if (p._bounds is not None and f.index >= 45 and t_absorbed is None
+                and np.median(p._bounds.surface_mm[205:255, 255:345]) < 950):
+            t_absorbed = (f.index - 45) / FPS
+    assert t_absorbed is not None and t_absorbed <= 2.0
+
+
+def test_finger_held_still_ten_seconds_is_never_absorbed():
+    f = Finger(320, 240, 90)
+    hm = render_heights((480, 640), [f], MM_PER_PX)
+    script = [lambda k: hm] * int(10 * FPS)
+    p, log = run(script)
+    events = [e for _, evs in log for e in evs]
+    assert {e.id for e in events} == {1}
+    assert [e.state for e in events].count("down") == 1
+    assert all(e.state != "up" for e in events)
+    last = [e for e in log[-1][1]]
+    assert last and np.hypot(last[0].x - f.x, last[0].y - f.y) * MM_PER_PX < 3.0
+
+
+def test_slow_drift_is_absorbed():
+    # the table comes 3 mm closer over 10 s (a thermal drift is slower still), then stays
+    n_drift = int(10 * FPS)
+    plane = lambda i: 1000.0 - min(max(0, i - 45), n_drift) * 3.0 / n_drift  # noqa: E731
+    empty = np.zeros((480, 640), np.float32)
+    p, log = run([lambda k: empty] * int(20 * FPS), plane=plane)
+    assert p._bounds is not None and p.stats.relearns == 0
+    assert abs(float(np.median(p._bounds.surface_mm)) - 997.0) < 1.0
+    assert not any(evs for _, evs in log)
+
+
+def test_camera_bump_relearns_the_surface():
+    # the camera moves: the table is 40 mm farther and tilted from frame 45 + 30 on
+    yy = np.arange(480, dtype=np.float32)[:, None]
+    shifted = np.broadcast_to(-40.0 - 0.05 * (yy - 240), (480, 640)).astype(np.float32)
+    script = [lambda k: np.zeros((480, 640), np.float32)] * 30 + [lambda k: shifted] * 150
+    p, log = run(script)
+    assert p.stats.relearns == 1
+    assert p.surface is not None
+    assert abs(float(np.median(p._bounds.surface_mm)) - 1040.0) < 3.0
+    assert not any(evs for _, evs in log)
+
+
+@pytest.mark.parametrize("enabled", [False, True])
+def test_adaptation_can_be_switched_off(enabled):
+    empty = np.zeros((480, 640), np.float32)
+    with_box = box(empty, 250, 200, 350, 260, 60.0)
+    cfg = PipelineConfig().replace(adapt={"enabled": enabled})
+    p, _ = run([lambda k: with_box] * 90, config=cfg)
+    assert (float(p._bounds.surface_mm[230, 300]) < 950) is enabled
+
+
+@pytest.mark.parametrize("h, w", [(480, 640), (424, 512), (250, 333), (7, 5), (101, 99)])
+def test_coarse_view_samples_the_pixels_opencv_nearest_resize_takes(h, w):
+    import cv2
+
+    from depthtouch.surface.adapt import _nearest, _upsample
+
+    sh, sw = max(1, h // 4), max(1, w // 4)
+    img = np.arange(h * w, dtype=np.float32).reshape(h, w)
+    want = cv2.resize(img, (sw, sh), interpolation=cv2.INTER_NEAREST)
+    np.testing.assert_array_equal(img[np.ix_(_nearest(sh, h), _nearest(sw, w))], want)
+    small = (np.arange(sh * sw) % 251).astype(np.uint8).reshape(sh, sw)
+    want = cv2.resize(small, (w, h), interpolation=cv2.INTER_NEAREST)
+    np.testing.assert_array_equal(_upsample(small, _nearest(h, sh), _nearest(w, sw)), want)
+
+
+def _exclusions_opencv(adapter, depth, touch_xy_px):
+    """The exclusion map as OpenCV array calls (the compiled version's oracle): changes at 1/4
+    resolution connected to the border, dilated, and discs around the touches; full size."""
+    import cv2
+
+    b, scale = adapter.bounds, 4
+    h, w = depth.shape
+    sw, sh = max(1, w // scale), max(1, h // scale)
+    ds = cv2.resize(depth, (sw, sh), interpolation=cv2.INTER_NEAREST).astype(np.float32)
+    ds *= np.float32(b.to_mm)
+    ss = cv2.resize(b.surface_mm, (sw, sh), interpolation=cv2.INTER_NEAREST)
+    tl = cv2.resize(b.tl_mm, (sw, sh), interpolation=cv2.INTER_NEAREST)
+    ok = (ds > 0) & (cv2.resize(b.valid.view(np.uint8), (sw, sh),
+                                 interpolation=cv2.INTER_NEAREST) > 0)
+    changed = (ok & (np.abs(ss - ds) > tl)).astype(np.uint8)
+    _, labels, stats, _ = cv2.connectedComponentsWithStats(changed, connectivity=8)
+    x, y, bw, bh = stats[:, 0], stats[:, 1], stats[:, 2], stats[:, 3]
+    border = (x == 0) | (y == 0) | (x + bw >= sw) | (y + bh >= sh)
+    border[0] = False
+    excl = cv2.dilate(border[labels].astype(np.uint8), np.ones((3, 3), np.uint8))
+    r = max(1, int(round(adapter.config.keep_out_mm / b.mm_per_px / scale)))
+    for x_px, y_px in touch_xy_px:
+        cv2.circle(excl, (int(x_px / scale), int(y_px / scale)), r, 1, thickness=-1)
+    return cv2.resize(excl, (w, h), interpolation=cv2.INTER_NEAREST) > 0
+
+
+def test_exclusions_match_the_opencv_version():
+    """Frame by frame on a simulated recording with objects and arms from the border."""
+    import cv2
+
+    from depthtouch.sim import render_scene
+    from depthtouch.surface.adapt import _upsample
+
+    rec = render_scene("object", camera="kinect-v2", distance_m=1.0, seed=4)
+    p = Pipeline()
+    compared = 0
+    for i in range(rec.depth.shape[0]):
+        p.process(Frame(rec.depth[i], float(rec.timestamps_s[i]), i, rec.depth_scale_m, rec.K))
+        a = p._adapter
+        if a is None or i % 4:
+            continue
+        d = cv2.medianBlur(rec.depth[i], 3)
+        touch = np.array([[100.0 + i, 200.0], [300.0, 50.0 + i]])
+        want = _exclusions_opencv(a, d, touch)
+        kept = a._exclude
+        a._exclusions(d, touch)
+        got = _upsample(a._exclude, a._up_y, a._up_x) > 0
+        a._exclude = kept
+        np.testing.assert_array_equal(got, want)
+        compared += int(want.any())
+    assert compared > 20

@@ -1,0 +1,384 @@
+"""Touch path filters: factory and errors, per-id state, time handling, golden 1€, properties."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from depthtouch.config import FilterConfig
+from depthtouch.errors import ConfigError
+from depthtouch.tracking.filters import (
+    DEFAULT_FILTER,
+    FILTERS,
+    TouchFilter,
+    default_params,
+    make_filter,
+    smoothing_factor,
+)
+
+
+def _run(f, t, xy, ids=(0,)):  # one touch per frame; returns (T, 2)
+    return np.array([f.update(np.array(ids), xy[k : k + 1], t[k])[0] for k in range(len(t))])
+
+
+# --- factory and configuration errors ------------------------------------------------------------
+@pytest.mark.parametrize(
+    "name, params, error",
+    [
+        ("none", {}, None),
+        ("lowpass", {"cutoff_hz": 2.0}, None),
+        ("kalman", {"measurement_noise_mm": 1.5, "process_noise_mm_s2": 800}, None),
+        ("adaptive", {"min_cutoff_hz": 1.0, "half_weight_mm": 5.0}, None),
+        ("one_euro", {"min_cutoff_hz": 1.0, "beta_per_mm": 0.0, "d_cutoff_hz": 1.0}, None),
+        ("kalmann", {}, "unknown filter 'kalmann'; use one of none, lowpass, kalman, adaptive"),
+        ("", {}, "unknown filter ''"),
+        (
+            "one_euro",
+            {"beta": 0.1},
+            "unknown parameter filter.params.beta for one_euro; valid: "
+            "min_cutoff_hz, beta_per_mm, d_cutoff_hz",
+        ),
+        ("none", {"alpha": 0.5}, "valid: none (this filter takes no parameters)"),
+        (
+            "lowpass",
+            {"cutoff_hz": 0.0},
+            "cutoff_hz = 0.0 is out of range for lowpass; allowed (0.0",
+        ),
+        ("lowpass", {"cutoff_hz": -1.0}, "out of range"),
+        ("lowpass", {"cutoff_hz": math.nan}, "out of range"),
+        ("lowpass", {"cutoff_hz": math.inf}, "out of range"),
+        ("kalman", {"process_noise_mm_s2": 2e6}, "allowed (0.0, 1000000.0]"),
+        ("kalman", {"initial_speed_mm_s": 0.0}, None),
+        ("one_euro", {"beta_per_mm": -0.1}, "allowed [0.0, 100.0]"),
+        ("adaptive", {"half_weight_mm": True}, "must be a number"),
+        ("adaptive", {"half_weight_mm": "5"}, "must be a number"),
+    ],
+)
+def test_make_filter_table(name, params, error):
+    if error is None:
+        f = make_filter(FilterConfig(name, params))
+        assert isinstance(f, TouchFilter)
+        assert f.name == name
+        assert f.params == {**default_params(name), **{k: float(v) for k, v in params.items()}}
+    else:
+        with pytest.raises(ConfigError) as e:
+            make_filter(FilterConfig(name, params))
+        assert error in str(e.value)
+        assert "\n" not in str(e.value)
+
+
+def test_every_name_builds_and_default_is_known():
+    assert DEFAULT_FILTER in FILTERS
+    for name in FILTERS:
+        assert make_filter(name).name == name
+        assert make_filter(name, **default_params(name)).params == default_params(name)
+
+
+# --- interface: shapes, ids, inputs ------------------------------------------------------------
+@pytest.mark.parametrize(
+    "ids, xy, t, match",
+    [
+        (np.array([1, 2]), np.zeros((2, 3)), 0.0, r"expected shape \(2, 2\), got \(2, 3\)"),
+        (np.array([1, 2]), np.zeros((3, 2)), 0.0, r"expected shape \(2, 2\)"),
+        (np.array([[1, 2]]), np.zeros((1, 2)), 0.0, "ids: expected integer shape"),
+        (np.array([1.5]), np.zeros((1, 2)), 0.0, "ids: expected integer shape"),
+        (np.array([3, 3]), np.zeros((2, 2)), 0.0, "distinct"),
+        (np.array([1]), np.array([[np.nan, 0.0]]), 0.0, "must be finite"),
+        (np.array([1]), np.zeros((1, 2)), math.nan, "timestamp_s must be finite"),
+    ],
+)
+@pytest.mark.parametrize("name", FILTERS)
+def test_update_rejects_bad_input(name, ids, xy, t, match):
+    with pytest.raises(ValueError, match=match):
+        make_filter(name).update(ids, xy, t)
+
+
+@pytest.mark.parametrize("name", FILTERS)
+def test_empty_frame_and_no_mutation(name):
+    f = make_filter(name)
+    assert f.update(np.zeros(0, np.int64), np.zeros((0, 2)), 0.0).shape == (0, 2)
+    assert f.update(np.array([], dtype=np.int64), np.zeros((0, 2)), 0.1).shape == (0, 2)
+    ids, xy = np.array([4, 9]), np.array([[1.0, 2.0], [3.0, 4.0]])
+    ids0, xy0 = ids.copy(), xy.copy()
+    out1 = f.update(ids, xy, 1.0)
+    np.testing.assert_array_equal(out1, xy)  # a new touch starts at its measurement
+    out2 = f.update(ids, xy + 5.0, 1.05)
+    out2[:] = -1.0  # the returned array is the caller's, not the filter's state
+    np.testing.assert_array_equal(ids, ids0)
+    np.testing.assert_array_equal(xy, xy0)
+    assert (f.update(ids, xy + 5.0, 1.05) != -1.0).all()
+
+
+@pytest.mark.parametrize("name", FILTERS)
+def test_touches_are_independent_and_vectorised(name):
+    """Filtering several touches together, with missed frames, equals filtering each alone."""
+    rng = np.random.default_rng(3)
+    t = np.cumsum(rng.uniform(0.02, 0.05, 60))
+    paths = np.cumsum(rng.normal(0, 4, (3, 60, 2)), axis=1) + rng.uniform(0, 500, (3, 1, 2))
+    seen = rng.random((3, 60)) > 0.2
+    seen[:, 0] = True
+    together = make_filter(name)
+    got = np.full(paths.shape, np.nan)
+    ids = np.array([10, 20, 30])
+    for k in range(60):
+        m = seen[:, k]
+        got[m, k] = together.update(ids[m][::-1], paths[m, k][::-1], t[k])[::-1]
+    for i in range(3):
+        alone = make_filter(name)
+        ks = np.flatnonzero(seen[i])
+        want = _run(alone, t[ks], paths[i, ks])
+        np.testing.assert_allclose(got[i, ks], want, rtol=0, atol=1e-9)
+
+
+@pytest.mark.parametrize("name", FILTERS)
+def test_drop_and_new_id_start_fresh(name):
+    f = make_filter(name)
+    a = np.array([[0.0, 0.0]])
+    for k in range(10):
+        f.update(np.array([1, 2]), np.vstack([a + 10 * k, a]), 0.033 * k)
+    f.drop(np.array([1, 99]))  # unknown ids are ignored
+    assert f.active_ids == [2]
+    out = f.update(np.array([1]), np.array([[500.0, -3.0]]), 0.4)
+    np.testing.assert_array_equal(out, [[500.0, -3.0]])
+    f.reset()
+    assert f.active_ids == []
+    np.testing.assert_array_equal(
+        f.update(np.array([2]), np.array([[7.0, 7.0]]), 0.5), [[7.0, 7.0]]
+    )
+
+
+def test_many_ids_grow_the_state_table():
+    f = make_filter("kalman")
+    ids = np.arange(40)
+    xy = np.stack([ids, -ids], axis=1).astype(float)
+    np.testing.assert_array_equal(f.update(ids, xy, 0.0), xy)
+    out = f.update(ids, xy, 0.033)
+    np.testing.assert_allclose(out, xy)
+    assert f.active_ids == list(range(40))
+
+
+@pytest.mark.parametrize("name", FILTERS)
+def test_usual_frame_and_frame_with_a_new_touch_give_the_same_numbers(name):
+    """A frame of known touches with time advanced takes a shorter way through update() than one
+    with a new touch (or no time elapsed); the known touches get the same doubles either way."""
+    rng = np.random.default_rng(11)
+    t = np.cumsum(rng.uniform(0.02, 0.05, 40))
+    paths = np.cumsum(rng.normal(0, 4, (3, 40, 2)), axis=1)
+    ids = np.array([7, 3, 5])
+    usual, mixed = make_filter(name), make_filter(name)
+    for k in range(40):
+        a = usual.update(ids, paths[:, k], t[k])
+        # the same touches plus one never seen before (from the second frame on)
+        extra_id = np.array([100 + k]) if k else np.zeros(0, np.int64)
+        extra_xy = rng.normal(0, 50, (len(extra_id), 2))
+        b = mixed.update(np.concatenate([extra_id, ids]), np.vstack([extra_xy, paths[:, k]]), t[k])
+        np.testing.assert_array_equal(b[len(extra_id):], a)
+        if k % 2:
+            mixed.drop(extra_id)
+
+
+@pytest.mark.parametrize("dtype", [np.int8, np.int32, np.uint16, np.uint64])
+def test_any_integer_ids(dtype):
+    f = make_filter("adaptive")
+    out = f.update(np.array([3, 1], dtype), np.array([[1.0, 2.0], [3.0, 4.0]]), 0.0)
+    np.testing.assert_array_equal(out, [[1.0, 2.0], [3.0, 4.0]])
+    assert f.active_ids == [1, 3]
+
+
+# --- time: repeated and backwards timestamps ---------------------------------------------------
+@pytest.mark.parametrize("name", FILTERS)
+@pytest.mark.parametrize("bad_dt", [0.0, -0.02])
+def test_no_time_elapsed_keeps_output_and_state(name, bad_dt):
+    rng = np.random.default_rng(5)
+    t = np.arange(20) * 0.033
+    xy = np.cumsum(rng.normal(0, 3, (20, 2)), axis=0)
+    clean = _run(make_filter(name), t, xy)
+    f = make_filter(name)
+    got = []
+    for k in range(20):
+        got.append(f.update(np.array([0]), xy[k : k + 1], t[k])[0])
+        if k == 9:  # an extra frame at a repeated (or earlier) time, with another measurement
+            again = f.update(np.array([0]), xy[k : k + 1] + 50.0, t[k] + bad_dt)[0]
+            np.testing.assert_array_equal(again, got[-1])
+    np.testing.assert_allclose(np.array(got), clean, rtol=0, atol=1e-12)
+    assert np.isfinite(got).all()
+
+
+def test_smoothing_factor():
+    dt = np.array([1e-6, 0.01, 1.0, 1e6])
+    a = smoothing_factor(dt, 1.0)
+    assert ((a > 0) & (a < 1)).all() and (np.diff(a) > 0).all()
+    assert a[1] == pytest.approx(0.01 / (0.01 + 1 / (2 * math.pi)))
+
+
+# --- behaviour of each filter ------------------------------------------------------------------
+def test_none_is_identity_and_lowpass_step():
+    rng = np.random.default_rng(1)
+    xy, t = rng.normal(0, 5, (30, 2)), np.arange(30) / 30
+    np.testing.assert_array_equal(_run(make_filter("none"), t, xy), xy)
+    f = make_filter("lowpass", cutoff_hz=2.0)
+    f.update(np.array([0]), np.array([[0.0, 0.0]]), 0.0)
+    out = f.update(np.array([0]), np.array([[10.0, -10.0]]), 0.05)
+    a = 0.05 / (0.05 + 1 / (4 * math.pi))
+    np.testing.assert_allclose(out, [[10 * a, -10 * a]])
+
+
+@pytest.mark.parametrize("name, atol_mm", [("kalman", 0.05), ("adaptive", 1.0), ("lowpass", 20.0)])
+def test_prediction_filters_track_constant_velocity_without_lag(name, atol_mm):
+    """After 3 s at 0.32 m/s the prediction filters sit on the line (the adaptive one learns the
+    velocity slowly once its innovation is small: within 1 mm, 3 ms); the low-pass lags 30 ms."""
+    t = np.arange(90) / 30
+    xy = np.stack([300.0 * t, -120.0 * t], axis=1) + 50.0
+    out = _run(make_filter(name), t, xy)
+    err = np.hypot(*(out[-10:] - xy[-10:]).T)
+    assert err.max() < atol_mm
+    if name == "lowpass":
+        assert err.min() > 5.0
+
+
+def test_lowpass_lags_on_a_ramp_as_its_time_constant():
+    t = np.arange(300) / 100
+    xy = np.stack([200.0 * t, 0 * t], axis=1)
+    out = _run(make_filter("lowpass", cutoff_hz=2.0), t, xy)
+    lag_s = (xy[-1, 0] - out[-1, 0]) / 200.0
+    # discrete exponential smoothing of a ramp lags by tau = 1/(2π fc) (the dt term is exact)
+    assert lag_s == pytest.approx(1 / (4 * math.pi), rel=1e-6)
+
+
+def test_adaptive_follows_a_jump_and_smooths_noise():
+    rng = np.random.default_rng(2)
+    t = np.arange(60) / 30
+    still = 100.0 + rng.normal(0, 2.0, (60, 2))
+    out = _run(make_filter("adaptive"), t, still)
+    # shipped parameters favour little lag (docs/filters.md): 2 mm still noise is cut by ~13 %
+    assert np.std(out[30:], axis=0).max() < 0.9 * np.std(still[30:], axis=0).min()
+    smooth = _run(make_filter("adaptive", min_cutoff_hz=0.25, half_weight_mm=12.0), t, still)
+    assert np.std(smooth[30:], axis=0).max() < 0.5 * np.std(still[30:], axis=0).min()
+    f = make_filter("adaptive")
+    _run(f, t, np.full((60, 2), 100.0))
+    jumped = f.update(np.array([0]), np.array([[160.0, 100.0]]), 2.0 + 1 / 30)
+    assert jumped[0, 0] > 159.0  # a 60 mm jump gets a weight of ~1
+    g = make_filter("kalman")
+    _run(g, t, np.full((60, 2), 100.0))
+    assert g.update(np.array([0]), np.array([[160.0, 100.0]]), 2.0 + 1 / 30)[0, 0] < 150.0
+
+
+# --- golden: the authors' 1€ implementation ------------------------------------------------------
+def _reference_one_euro(t, x, min_cutoff, beta, d_cutoff):
+    """The PyPI OneEuroFilter on each axis, with two of its quirks worked around here:
+    it ignores a timestamp of exactly 0 (so times are shifted by +1000 s, which leaves every
+    difference the same), and on a repeated timestamp it reuses the previous rate instead of
+    treating no time as elapsed (so repeated samples are not passed to it; ours must return the
+    previous output there, checked by the caller)."""
+    one_euro = pytest.importorskip("OneEuroFilter")
+    refs = [one_euro.OneEuroFilter(30.0, min_cutoff, beta, d_cutoff) for _ in range(2)]
+    return np.array(
+        [[refs[a](float(x[k, a]), float(t[k]) + 1000.0) for a in range(2)] for k in range(len(t))]
+    )
+
+
+@pytest.mark.parametrize(
+    "seed, min_cutoff, beta, d_cutoff",
+    [(0, 1.0, 0.0, 1.0), (1, 1.0, 0.007, 1.0), (2, 0.5, 0.05, 2.0), (3, 2.0, 0.01, 1.0)],
+)
+def test_one_euro_matches_reference(seed, min_cutoff, beta, d_cutoff):
+    rng = np.random.default_rng(seed)
+    n = 300
+    dt = rng.uniform(0.004, 0.06, n - 1)
+    dt[rng.choice(n - 1, 12, replace=False)] = 0.0  # repeated timestamps
+    t = np.concatenate([[0.0], np.cumsum(dt)])  # starts at t = 0
+    x = np.cumsum(rng.normal(0, 5, (n, 2)), axis=0) + rng.normal(0, 2, (n, 2))
+    f = make_filter("one_euro", min_cutoff_hz=min_cutoff, beta_per_mm=beta, d_cutoff_hz=d_cutoff)
+    ours = _run(f, t, x)
+    fresh = np.concatenate([[True], np.diff(t) > 0])
+    ref = _reference_one_euro(t[fresh], x[fresh], min_cutoff, beta, d_cutoff)
+    np.testing.assert_allclose(ours[fresh], ref, rtol=0, atol=1e-6)
+    # a repeated timestamp returns the previous output
+    rep = np.flatnonzero(~fresh)
+    np.testing.assert_array_equal(ours[rep], ours[rep - 1])
+    # after reset() ours starts fresh, like a new reference instance (its reset() keeps the last
+    # value, so a new instance is the fair comparison)
+    f.reset()
+    again = _run(f, t[fresh][:100] + 7.0, x[fresh][:100][::-1])
+    ref2 = _reference_one_euro(
+        t[fresh][:100] + 7.0, x[fresh][:100][::-1], min_cutoff, beta, d_cutoff
+    )
+    np.testing.assert_allclose(again, ref2, rtol=0, atol=1e-6)
+
+
+# --- properties ----------------------------------------------------------------------------------
+_dts = st.lists(st.floats(0.005, 0.1), min_size=1, max_size=40)
+_point = st.tuples(st.floats(-1000, 1000), st.floats(-1000, 1000))
+
+
+@settings(max_examples=40, deadline=None)
+@given(name=st.sampled_from(FILTERS), c=_point, start=_point, dts=_dts)
+def test_constant_input_converges(name, c, start, dts):
+    f = make_filter(name)
+    t = 0.0
+    f.update(np.array([0]), np.array([start]), t)
+    # irregular steps from the list, then 5 s more at 30 fps
+    steps = list(dts) + [1 / 30] * 150
+    out = np.array([start])
+    for dt in steps:
+        t += dt
+        out = f.update(np.array([0]), np.array([c]), t)
+    scale = 1.0 + abs(np.subtract(c, start)).max()
+    np.testing.assert_allclose(out[0], c, atol=1e-3 * scale)
+
+
+@settings(max_examples=40, deadline=None)
+@given(
+    name=st.sampled_from(FILTERS),
+    seed=st.integers(0, 2**16),
+    n_a=st.integers(1, 30),
+    n_b=st.integers(1, 30),
+)
+def test_reset_clears_all_state(name, seed, n_a, n_b):
+    rng = np.random.default_rng(seed)
+    ta = np.cumsum(rng.uniform(0.01, 0.05, n_a))
+    tb = np.cumsum(rng.uniform(0.01, 0.05, n_b)) + rng.uniform(-5, 5)
+    a, b = rng.normal(0, 50, (n_a, 2)), rng.normal(0, 50, (n_b, 2))
+    f = make_filter(name)
+    _run(f, ta, a, ids=(3,))
+    f.update(np.array([4]), np.array([[1.0, 1.0]]), float(ta[-1]))
+    f.reset()
+    np.testing.assert_array_equal(
+        _run(f, tb, b, ids=(3,)), _run(make_filter(name), tb, b, ids=(3,))
+    )
+    # drop() is a reset of one id
+    g = make_filter(name)
+    _run(g, ta, a, ids=(3,))
+    g.drop(np.array([3]))
+    np.testing.assert_array_equal(
+        _run(g, tb, b, ids=(3,)), _run(make_filter(name), tb, b, ids=(3,))
+    )
+
+
+@settings(max_examples=40, deadline=None)
+@given(
+    name=st.sampled_from(["none", "lowpass", "one_euro"]),
+    seed=st.integers(0, 2**16),
+    n=st.integers(2, 60),
+    params=st.fixed_dictionaries({"x": st.floats(0.1, 20.0), "beta": st.floats(0.0, 1.0)}),
+)
+def test_smoothing_filters_stay_within_input_range(name, seed, n, params):
+    """Low-pass and 1€ outputs are convex combinations of past inputs, so they stay within the
+    inputs' range per axis (Kalman and the adaptive filter extrapolate, so they may not)."""
+    rng = np.random.default_rng(seed)
+    t = np.cumsum(rng.uniform(0.0, 0.08, n))  # includes near-zero steps
+    t[rng.random(n) < 0.1] = 0.0
+    t = np.maximum.accumulate(t)
+    xy = rng.normal(0, 100, (n, 2)) * rng.uniform(0.01, 10)
+    kw = {
+        "lowpass": {"cutoff_hz": params["x"]},
+        "one_euro": {"min_cutoff_hz": params["x"], "beta_per_mm": params["beta"]},
+    }.get(name, {})
+    out = _run(make_filter(name, **kw), t, xy)
+    lo, hi = np.minimum.accumulate(xy, axis=0), np.maximum.accumulate(xy, axis=0)
+    tol = 1e-9 * (1 + np.abs(xy).max())
+    assert (out >= lo - tol).all() and (out <= hi + tol).all()
