@@ -15,7 +15,8 @@ import cv2
 import numpy as np
 
 from depthtouch.config import TouchPointConfig
-from depthtouch.touch.regions import HAND_SCALE, BandBounds, Regions
+from depthtouch.surface.bounds import HAND_SCALE, BandBounds
+from depthtouch.touch.regions import Regions
 from depthtouch.types import TouchPoints
 
 _K3 = np.ones((3, 3), np.uint8)

@@ -50,12 +50,19 @@ def _add_replay(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--save-surface", help="save the learned surface model to this file")
     p.add_argument("--surface-frames", type=int, help="learn the surface from N frames")
     p.add_argument("--filter", help="path filter name (overrides the config)")
+    p.add_argument("--realtime", action=argparse.BooleanOptionalAction, default=None,
+                   help="play at the recording's own pace (default with --tuio, so that apps "
+                        "see the touches as they happened) or as fast as possible (default)")
     p.add_argument("-q", "--quiet", action="store_true", help="print only errors")
 
     def run(a: argparse.Namespace) -> int:
-        from .runner import replay
+        from .replay import replay
 
         cfg = _load_config(a.config)
+        paced = a.realtime if a.realtime is not None else bool(a.tuio)
+        if paced and a.realtime is None and not a.quiet:
+            print("depthtouch: replaying at the recording's own pace for --tuio "
+                  "(--no-realtime: as fast as possible)", file=sys.stderr)
         summary = replay(
             a.recording,
             config=cfg,
@@ -67,6 +74,7 @@ def _add_replay(sub: argparse._SubParsersAction) -> None:
             tuio=a.tuio,
             calibration_path=a.calibration,
             progress=not a.quiet,
+            realtime=1.0 if paced else None,
         )
         if not a.quiet:
             print(summary.describe())
@@ -391,7 +399,8 @@ def _add_run(sub: argparse._SubParsersAction) -> None:
     p.add_argument("-q", "--quiet", action="store_true", help="no status line")
 
     def run(a: argparse.Namespace) -> int:
-        from .live import LiveConfig, is_live_spec, run_live
+        from .live import LiveConfig, run_live
+        from .sources import is_live_spec
 
         opts = _camera_options(a, a.source)
         countdown = a.countdown if a.countdown is not None else (
@@ -481,20 +490,45 @@ def main(argv: Sequence[str] | None = None) -> int:
     if getattr(args, "func", None) is None:
         parser.print_help()
         return 2
+    stopped: list[int] = []
+    restore = _stop_on_signals(stopped)
     try:
         return int(args.func(args) or 0)
     except DepthTouchError as e:
         print(f"depthtouch: error: {e}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
+        if stopped:  # a service manager's stop: the command's outputs were closed cleanly
+            return 0
         print("depthtouch: interrupted", file=sys.stderr)
         return 130
     except BrokenPipeError:
         return 0
+    finally:
+        restore()
 
 
-def _path_or_none(value: str | None) -> Path | None:
-    return Path(value) if value else None
+def _stop_on_signals(stopped: list[int]) -> Callable[[], None]:
+    """SIGTERM and SIGHUP (systemd, docker stop, a closed terminal) end a command the way Ctrl-C
+    does: the loop ends the touches still down, the events file is kept, TUIO sends its final
+    empty ``alive``, sockets close. Returns a function that restores the previous handlers."""
+    import signal
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        return lambda: None
+
+    def stop(signum: int, frame: object) -> None:
+        stopped.append(signum)
+        raise KeyboardInterrupt
+
+    sigs = [signal.SIGTERM] + ([signal.SIGHUP] if hasattr(signal, "SIGHUP") else [])
+    old = {s: signal.signal(s, stop) for s in sigs}
+    def restore() -> None:
+        for s, h in old.items():
+            signal.signal(s, h)
+
+    return restore
 
 
 if __name__ == "__main__":  # pragma: no cover

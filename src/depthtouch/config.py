@@ -15,6 +15,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from .checks import check_range as _range
+from .checks import show as _show
 from .errors import ConfigError
 
 if sys.version_info >= (3, 11):
@@ -23,23 +25,10 @@ else:  # pragma: no cover - Python 3.10
     import tomli as tomllib
 
 
-def _show(value: object, limit: int = 30) -> str:
-    """repr for a one-line message, shortened (a TOML integer may have hundreds of digits)."""
-    r = " ".join(repr(value).split())
-    return r if len(r) <= limit else r[: limit - 3] + "..."
-
-
 def _key(key: object, limit: int = 30) -> str:
     """A user's key for a one-line message: unquoted, whitespace collapsed, shortened."""
     text = " ".join(str(key).split())
     return text if len(text) <= limit else text[: limit - 3] + "..."
-
-
-def _range(name: str, value: float, lo: float, hi: float, *, lo_open: bool = False) -> None:
-    bad = value <= lo if lo_open else value < lo
-    if bad or value > hi or value != value:
-        lb = "(" if lo_open else "["
-        raise ConfigError(f"{name} = {_show(value)} is out of range; allowed {lb}{lo}, {hi}]")
 
 
 @dataclass(frozen=True)

@@ -35,6 +35,7 @@ from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from typing import Any
 
+from .checks import check_range
 from .errors import ConfigError, OutputError
 from .types import TouchEvent
 
@@ -44,10 +45,7 @@ GESTURE_KINDS = (
 
 
 def _range(name: str, value: float, lo: float, hi: float, *, lo_open: bool = False) -> None:
-    bad = value <= lo if lo_open else value < lo
-    if bad or value > hi or value != value:
-        lb = "(" if lo_open else "["
-        raise ConfigError(f"gestures.{name} = {value!r} is out of range; allowed {lb}{lo}, {hi}]")
+    check_range(f"gestures.{name}", value, lo, hi, lo_open=lo_open)
 
 
 @dataclass(frozen=True)

@@ -1,16 +1,17 @@
 """The pipeline: the only place that wires the per-frame stages together.
 
-source frame -> surface (learned from the first frames) -> band masks -> regions -> touch points
--> tracking -> path filter -> calibration -> :class:`TouchEvent` list.
+source frame -> surface (learned, then kept current) -> regions -> touch points -> tracking ->
+path filter -> coordinates (X/Y/Z, screen) -> one :class:`~depthtouch.types.FrameResult`.
 
-``Pipeline(config).process(frame)`` returns the events of that frame (none while the surface is
-being learned). Bad frames in a live stream (another size, wrong dtype) are skipped, counted and
-warned about once, never raised.
+``Pipeline(config).process(frame)`` returns what the sensor made of that frame: its events, the
+touch points, a status (learning, ok, disturbed, relearned, skipped) and the time per stage. The
+coordinates every output needs (the filtered position, X/Y/Z in mm on the surface as it is now,
+``sx``/``sy`` on the screen) are computed here, once; sinks read them. Bad frames in a live
+stream (another size, wrong dtype) are skipped, counted and warned about once, never raised.
 """
 
 from __future__ import annotations
 
-import dataclasses
 import logging
 import math
 import time
@@ -22,13 +23,14 @@ import numpy as np
 
 from .config import PipelineConfig
 from .errors import SourceError, SurfaceError
-from .surface.adapt import SurfaceAdapter
-from .surface.model import SurfaceLearner, SurfaceModel
+from .surface.gate import LearningGate
+from .surface.model import SurfaceModel
+from .surface.surface import Surface
 from .touch.points import find_touch_points
-from .touch.regions import BandBounds, band_bounds, band_regions, height_mm
+from .touch.regions import band_regions
 from .tracking.filters import TouchFilter, make_filter
 from .tracking.tracker import Tracker, TrackUpdate
-from .types import Frame, TouchEvent, TouchPoints
+from .types import Frame, FrameResult, FrameStatus, TouchEvent, TouchPoints
 
 log = logging.getLogger(__name__)
 _warm = False
@@ -70,7 +72,7 @@ class PipelineStats:
 
 
 class Pipeline:
-    """Depth frames in, touch events out.
+    """Depth frames in, one :class:`~depthtouch.types.FrameResult` per frame out.
 
     config: all stage settings (default :class:`PipelineConfig`).
     surface: a saved surface model; when None it is learned from the first frames.
@@ -78,6 +80,8 @@ class Pipeline:
     surface_frames: learn the surface from this many frames (overrides the config's seconds).
     strict: raise on a frame that cannot be used (replaying a file: the file is wrong) instead of
         skipping it with one warning (a live camera: the next frame may be fine).
+    gate: the learning gate of a live camera (see :mod:`depthtouch.surface.gate`); None learns
+        from every frame (recordings).
     """
 
     def __init__(
@@ -88,57 +92,51 @@ class Pipeline:
         calibration: ScreenMapping | None = None,
         surface_frames: int | None = None,
         strict: bool = False,
+        gate: LearningGate | None = None,
     ) -> None:
         self.config = (config or PipelineConfig()).validate()
         _warm_up()
         self.strict = strict
         self.calibration = calibration
-        self._surface_frames = surface_frames
         self.stats = PipelineStats()
-        self.last_timing_ms: dict[str, float] = {}
-        self.last_points: TouchPoints = TouchPoints.empty()
         self._warned: set[str] = set()
-        self._learner = SurfaceLearner(self.config.surface, surface_frames)
+        self.surface = Surface(self.config, surface, learn_frames=surface_frames, gate=gate)
         self._filter: TouchFilter = make_filter(self.config.filter)
         self._tracker = Tracker(self.config.tracking, self.config.touchpoints)
-        self.surface: SurfaceModel | None = None
-        self._bounds: BandBounds | None = None
-        self._adapter: SurfaceAdapter | None = None
+        self._reported: dict[int, tuple[float, float]] = {}  # last position sent per id, px
+        self._active: set[int] = set()
         self._last_frame: Frame | None = None
-        if surface is not None:
-            self.set_surface(surface)
+        self._scale_for(self.surface)
 
     # --- state -----------------------------------------------------------------------------
     @property
     def learning(self) -> bool:
-        return self.surface is None
-
-    @property
-    def learn_progress(self) -> float:
-        return 1.0 if self.surface is not None else self._learner.progress
+        return self.surface.learning
 
     @property
     def active_ids(self) -> list[int]:
-        return [t.id for t in self._tracker.tracks if t.active]
+        """Ids of the touches down now."""
+        return sorted(self._active)
 
     def set_surface(self, surface: SurfaceModel) -> None:
         """Use this surface from the next frame on (active touches continue)."""
-        if self.config.surface.statistic != surface.statistic:
-            surface = surface.with_statistic(self.config.surface.statistic)
-        self.surface = surface
-        self._bounds = band_bounds(surface, self.config.regions, self.config.touchpoints.tip_radius_mm)
-        self._adapter = (SurfaceAdapter(self.config.adapt, self._bounds)
-                         if self.config.adapt.enabled else None)
-        self._tracker.scale_mm_per_px = surface.mm_per_px() if surface.K is not None else None
+        self.surface.use(surface)
+        self._scale_for(self.surface)
+
+    def set_calibration(self, calibration: ScreenMapping | None) -> None:
+        """Map to this screen from the next frame on (the web page's calibration flow)."""
+        self.calibration = calibration
 
     def reset(self) -> None:
         """Forget the surface and all touches (ids keep increasing)."""
-        self.surface = None
-        self._bounds = None
-        self._adapter = None
-        self._learner = SurfaceLearner(self.config.surface, self._surface_frames)
+        self.surface.reset()
         self._tracker.reset()
         self._filter.reset()
+        self._reported.clear()
+        self._active.clear()
+
+    def _scale_for(self, surface: Surface) -> None:
+        self._tracker.use_scale(surface.mm_per_px)
 
     # --- per frame -------------------------------------------------------------------------
     def _prefilter(self, frame: Frame) -> Frame:
@@ -148,48 +146,41 @@ class Pipeline:
         return Frame(cv2.medianBlur(frame.depth, k), frame.timestamp_s, frame.index,
                      frame.depth_scale_m, frame.K)
 
-    def process(self, frame: Frame) -> list[TouchEvent]:
-        """The touch events of one frame (see the module doc)."""
+    def process(self, frame: Frame) -> FrameResult:
+        """What the sensor makes of one frame (see the module doc)."""
         self.stats.frames += 1
-        if self.surface is None:
+        surface = self.surface
+        if surface.learning:
             self.stats.learning_frames += 1
-            if not self._frame_ok(frame, None):
-                return []
+            if not self._frame_ok(frame):
+                return self._result(frame, [], "skipped")
             frame = self._prefilter(frame)
             try:
-                model = self._learner.update(frame)
+                learned = surface.learn(frame)
             except SurfaceError as e:
                 if self.strict:
                     raise
                 self._skip("learning", str(e))
-                self._learner.reset()
-                return []
-            if model is not None:
-                self.set_surface(model)
+                surface.reset()
+                return self._result(frame, [], "skipped")
+            if learned:
+                self._scale_for(surface)
             self._last_frame = frame
-            return []
-        if not self._frame_ok(frame, self.surface):
-            return []
-        b = self._bounds
-        assert b is not None
+            return self._result(frame, [], "learning")
+        if not self._frame_ok(frame):
+            return self._result(frame, [], "skipped")
         t0 = time.perf_counter()
         frame = self._prefilter(frame)
-        if self._adapter is not None:
-            # keep the surroundings of touches of arms reaching in from the border: a finger held
-            # still is never absorbed; a "touch" on something standing on the surface is
-            touching = [t.xy_px for t in self._tracker.tracks if t.active and t.hand_at_border]
-            self._adapter.update(frame.depth, frame.timestamp_s, np.array(touching))
-            verdict = self._adapter.check(frame.depth, frame.timestamp_s)
-            if verdict == "bump":
-                return self._relearn(frame)
-            if verdict == "disturbed":
-                # most of the surface changed at once: report no touches until it settles
-                self.stats.disturbed_frames += 1
-                self.last_points = TouchPoints.empty()
-                events = self._events(frame, self._tracker.end_all())
-                self.stats.events += len(events)
-                self._last_frame = frame
-                return events
+        # keep the surroundings of touches of arms reaching in from the border: a finger held
+        # still is never absorbed; a "touch" on something standing on the surface is
+        verdict = surface.follow(frame, np.array(self._tracker.held_at_border()))
+        if verdict == "bump":
+            return self._relearn(frame)
+        if verdict == "disturbed":
+            # most of the surface changed at once: report no touches until it settles
+            self.stats.disturbed_frames += 1
+            return self._result(frame, self._events(frame, self._tracker.end_all()), "disturbed")
+        b = surface.bounds
         ta = time.perf_counter()
         regions = band_regions(frame.depth, b)
         t1 = time.perf_counter()
@@ -199,50 +190,46 @@ class Pipeline:
         t3 = time.perf_counter()
         events = self._events(frame, updates)
         t4 = time.perf_counter()
-        self.last_points = points
-        self.last_timing_ms = {
+        timing = {
             "prefilter_surface_update": (ta - t0) * 1e3, "regions": (t1 - ta) * 1e3,
             "touchpoints": (t2 - t1) * 1e3,
             "tracking": (t3 - t2) * 1e3, "filter_events": (t4 - t3) * 1e3,
             "total": (t4 - t0) * 1e3,
         }
-        self._last_frame = frame
-        self.stats.events += len(events)
-        return events
+        return self._result(frame, events, "ok", points, timing)
 
-    def _relearn(self, frame: Frame) -> list[TouchEvent]:
+    def _relearn(self, frame: Frame) -> FrameResult:
         log.warning(
             "frame %d: most of the surface changed and stays changed (camera moved?); "
             "learning the surface again, no touches meanwhile", frame.index,
         )
         events = self._events(frame, self._tracker.end_all())
+        self.surface.relearn()
         self._filter.reset()
-        self.surface = None
-        self._bounds = None
-        self._adapter = None
-        relearn = dataclasses.replace(self.config.surface, learn_s=self.config.surface.relearn_s,
-                                      learn_frames=None)
-        self._learner = SurfaceLearner(relearn)
         self.stats.relearns += 1
+        return self._result(frame, events, "relearned")
+
+    def finish(self) -> FrameResult | None:
+        """End the active touches at the end of a stream (``up`` on the last frame); a surface
+        still being learned starts over with the next stream. None before any frame."""
+        self.surface.restart_learning()
+        last = self._last_frame
+        if last is None:
+            return None
+        events = self._events(last, self._tracker.end_all())
+        return self._result(last, events, "ended")
+
+    def _result(self, frame: Frame, events: list[TouchEvent], status: FrameStatus,
+                points: TouchPoints | None = None, timing: dict[str, float] | None = None
+                ) -> FrameResult:
+        if status != "skipped":
+            self._last_frame = frame
         self.stats.events += len(events)
-        self._last_frame = frame
-        return events
+        s = self.surface
+        return FrameResult(frame, events, TouchPoints.empty() if points is None else points,
+                           status, timing or {}, s.learn_progress, s.note, s)
 
-    def finish(self) -> list[TouchEvent]:
-        """End the active touches at the end of a stream (``up`` on the last frame)."""
-        if self._last_frame is None:
-            return []
-        events = self._events(self._last_frame, self._tracker.end_all())
-        self.stats.events += len(events)
-        return events
-
-    def height_map_mm(self, frame: Frame) -> np.ndarray:
-        """Height above the surface in mm, float32 (H, W), NaN where unknown (for views)."""
-        if self._bounds is None or frame.depth.shape != self._bounds.valid.shape:
-            return np.full(frame.depth.shape, np.nan, np.float32)
-        return height_mm(frame.depth, self._bounds)
-
-    # --- helpers ---------------------------------------------------------------------------
+    # --- events and their coordinates ------------------------------------------------------
     def _events(self, frame: Frame, updates: list[TrackUpdate]) -> list[TouchEvent]:
         if not updates:
             return []
@@ -261,14 +248,20 @@ class Pipeline:
         index, t_s = frame.index, frame.timestamp_s
         isfinite = math.isfinite
         filtered_it = iter(filtered)
+        reported, active = self._reported, self._active
         for u in updates:
             t = u.track
             if u.measured:
                 x_mm, y_mm = next(filtered_it)
                 xy_px = (x_mm / scale, y_mm / scale)
             else:  # grace frames and up repeat the last filtered position
-                xy_px = t.out_xy if t.out_xy is not None else t.xy_px
-            t.out_xy = xy_px
+                xy_px = reported.get(t.id, t.xy_px)
+            if u.state == "up":
+                reported.pop(t.id, None)
+                active.discard(t.id)
+            else:
+                reported[t.id] = xy_px
+                active.add(t.id)
             extra: dict[str, Any] = {"area": t.area_px}
             if isfinite(t.height_mm):
                 extra["h"] = round(t.height_mm, 2)
@@ -278,41 +271,25 @@ class Pipeline:
         return events
 
     def _add_coordinates(self, events: list[TouchEvent]) -> None:
-        surf = self.surface
-        if not events or surf is None:
-            return
-        if surf.K is not None:
-            # a handful of touches: plain floats cost less than array calls here
-            (fx, _, cx), (_, fy, cy), _ = surf.K.tolist()
-            dm = surf.depth_mm
-            w1, h1 = dm.shape[1] - 1, dm.shape[0] - 1
-            at = dm.item
-            for e in events:
-                x, y = e.x, e.y
-                ix, iy = round(x), round(y)  # nearest pixel, clamped to the image
-                ix = 0 if ix < 0 else (w1 if ix > w1 else ix)
-                iy = 0 if iy < 0 else (h1 if iy > h1 else iy)
-                z = float(at(iy, ix))
-                if z > 0:
-                    extra = e.extra
-                    extra["X"] = round((x - cx) * z / fx, 2)
-                    extra["Y"] = round((y - cy) * z / fy, 2)
-                    extra["Z"] = round(z, 2)
+        for e, xyz in zip(events, self.surface.xyz_mm([(e.x, e.y) for e in events])):
+            if xyz is not None:
+                e.extra.update(X=round(xyz[0], 2), Y=round(xyz[1], 2), Z=round(xyz[2], 2))
         if self.calibration is not None:
             xy = np.array([[e.x, e.y] for e in events], np.float64)
             sxy = self.calibration.to_screen(xy)
             for e, (sx, sy) in zip(events, sxy.tolist()):
                 e.extra.update(sx=round(sx, 2), sy=round(sy, 2))
 
-    def _frame_ok(self, frame: Frame, surface: SurfaceModel | None) -> bool:
+    # --- bad frames ------------------------------------------------------------------------
+    def _frame_ok(self, frame: Frame) -> bool:
         d = frame.depth
         if d.dtype != np.uint16:
             return self._skip("dtype", f"frame {frame.index} has dtype {d.dtype}, expected uint16")
-        if surface is not None and d.shape != surface.depth_mm.shape:
+        wh = self.surface.resolution_wh
+        if wh is not None and (d.shape[1], d.shape[0]) != wh:
             return self._skip(
-                "size",
-                f"frame {frame.index} is {d.shape[1]}x{d.shape[0]}, the surface "
-                f"{surface.depth_mm.shape[1]}x{surface.depth_mm.shape[0]}",
+                "size", f"frame {frame.index} is {d.shape[1]}x{d.shape[0]}, the surface "
+                f"{wh[0]}x{wh[1]}",
             )
         return True
 

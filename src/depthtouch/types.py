@@ -7,11 +7,16 @@ an ``empty()`` constructor. Nothing here mutates its inputs.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any, Literal
+from typing import Any, Literal, Protocol
 
 import numpy as np
 
 TouchState = Literal["down", "move", "up"]
+#: What the pipeline made of a frame: ``learning`` the surface (no touches yet), ``ok``,
+#: ``disturbed`` (most of the surface changed at once: touches off until it settles),
+#: ``relearned`` (the camera moved: touches ended, the surface is learned again), ``skipped``
+#: (an unusable frame, counted), ``ended`` (the touches still down were ended at a stream's end).
+FrameStatus = Literal["learning", "ok", "disturbed", "relearned", "skipped", "ended"]
 
 
 def _check_shape(name: str, arr: np.ndarray, shape: tuple[int | None, ...]) -> None:
@@ -47,10 +52,6 @@ class Frame:
     @property
     def resolution_wh(self) -> tuple[int, int]:
         return int(self.depth.shape[1]), int(self.depth.shape[0])
-
-    def depth_mm(self) -> np.ndarray:
-        """Depth in millimetres as float32 (0 stays 0 = missing)."""
-        return self.depth.astype(np.float32) * np.float32(self.depth_scale_m * 1000.0)
 
 
 @dataclass(frozen=True)
@@ -96,17 +97,6 @@ class TouchPoints:
 
 
 @dataclass(frozen=True)
-class Touch:
-    """A tracked touch in one frame: id, state and the (filtered) position."""
-
-    id: int
-    state: TouchState
-    xy_px: tuple[float, float]
-    height_mm: float = 0.0
-    area_px: int = 0
-
-
-@dataclass(frozen=True)
 class TouchEvent:
     """One line of the JSON Lines contract (docs/formats.md section 2).
 
@@ -143,3 +133,52 @@ class TouchEvent:
             int(d["frame"]), float(d["t"]), int(d["id"]), d["state"], float(d["x"]),
             float(d["y"]), extra,
         )
+
+
+@dataclass(frozen=True)
+class StreamGap:
+    """Yielded by a live source between frames when the stream broke (a camera was lost and
+    reopened): touches down before it are ended; ``reason`` says why, for a person."""
+
+    reason: str
+
+
+class HeightView(Protocol):
+    """What a result needs of the surface to draw a frame: height above it in mm."""
+
+    def height_map_mm(self, depth: np.ndarray) -> np.ndarray: ...
+
+
+@dataclass(frozen=True)
+class FrameResult:
+    """Everything the pipeline made of one frame; what every sink receives.
+
+    frame: the frame as processed (after the pre-filter).
+    events: the touch events (``sx``, ``sy`` from the calibration and ``X``, ``Y``, ``Z`` in mm
+        already added; sinks read them, never recompute them).
+    points: the touch points found before tracking (empty while learning).
+    status: see :data:`FrameStatus`.
+    timing_ms: milliseconds per stage of this frame, with ``total`` (empty while learning).
+    learn_progress: share of the surface learning done, in [0, 1] (1 once learned).
+    note: a line for a person while learning ("keep the surface clear..."), else "".
+    surface: the surface as it was for this frame (draws height maps on demand), or None.
+    """
+
+    frame: Frame
+    events: list[TouchEvent]
+    points: TouchPoints
+    status: FrameStatus
+    timing_ms: dict[str, float] = field(default_factory=dict)
+    learn_progress: float = 1.0
+    note: str = ""
+    surface: HeightView | None = field(default=None, repr=False)
+
+    @property
+    def learning(self) -> bool:
+        return self.status == "learning"
+
+    def height_map_mm(self) -> np.ndarray:
+        """Height above the surface in mm, float32 (H, W), NaN where unknown."""
+        if self.surface is None:
+            return np.full(self.frame.depth.shape, np.nan, np.float32)
+        return self.surface.height_map_mm(self.frame.depth)

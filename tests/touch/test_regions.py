@@ -3,7 +3,8 @@ import pytest
 
 from depthtouch.config import RegionConfig
 from depthtouch.surface.model import learn_surface
-from depthtouch.touch.regions import band_bounds, band_regions, height_mm
+from depthtouch.surface.bounds import band_bounds, height_mm
+from depthtouch.touch.regions import band_regions
 from reference_touchpoints import band_masks
 from synth import K_640, Finger, make_recording, render_heights
 
@@ -114,7 +115,7 @@ def test_regions_of_runs_match_opencv_contours(seed):
 
     import reference_touchpoints as ref
     from depthtouch.touch.regions import Regions, _any_close
-    from depthtouch.touch.runs import dilate_runs, parts_of_runs
+    from depthtouch.runs import dilate_runs, parts_of_runs
 
     rng = np.random.default_rng(seed)
     n_close = 0
@@ -194,7 +195,7 @@ def _depth_bounds_numpy(surface_mm, valid, factor, tl_mm, to_mm, tu_mm, hand_max
 
 
 def test_depth_bounds_bit_for_bit_as_numpy():
-    from depthtouch.touch.regions import _depth_bounds
+    from depthtouch.surface.bounds import _depth_bounds
 
     rng = np.random.default_rng(0)
     for _ in range(200):

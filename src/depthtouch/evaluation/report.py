@@ -19,7 +19,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from ..errors import OutputError
-from ..types import TouchEvent
+from ..types import FrameResult, TouchEvent
 from .metrics import EvalResult, Metrics, Truth, evaluate, summarize
 
 if TYPE_CHECKING:
@@ -246,35 +246,34 @@ class DemoResult:
 def _run_scene(
     scene: str, camera: str, distance_m: float, seed: int, out: Path, config: Any
 ) -> tuple[EvalResult, list[TouchEvent], Truth, str]:
+    from ..driver import drive
     from ..outputs.jsonl import JsonlSink
     from ..pipeline import Pipeline
     from ..sim import render_scene
-    from ..types import Frame
+    from ..sources.base import ArraySource
     from .metrics import truth_from_dict
+    from .suite import EventCollector
 
     rec = render_scene(scene, camera=camera, distance_m=distance_m, seed=seed)
     truth = truth_from_dict(rec.truth, f"{scene} truth")
     pipe = Pipeline(config)
-    events: list[TouchEvent] = []
-    timing: list[float] = []
     # the frame with the most true contacts (then the latest) is shown as the height map
     counts = np.bincount(truth.contact_frame, minlength=truth.n_frames)
     busiest = np.flatnonzero(counts == counts.max())
     show = int(busiest[len(busiest) // 2])
-    height = None
-    shown: list[TouchEvent] = []
-    for i in range(rec.depth.shape[0]):
-        frame = Frame(rec.depth[i], float(rec.timestamps_s[i]), i, rec.depth_scale_m, rec.K)
-        evs = pipe.process(frame)
-        events.extend(evs)
-        if not pipe.learning and "total" in pipe.last_timing_ms:
-            timing.append(pipe.last_timing_ms["total"])
-        if i == show:
-            height = pipe.height_map_mm(frame)
-            shown = [e for e in evs if e.state != "up"]
-    events.extend(pipe.finish())
+    seen: dict[str, Any] = {}
+
+    def keep_shown(result: FrameResult) -> None:
+        if result.frame.index == show and result.status != "ended":
+            seen["height"] = result.height_map_mm()
+            seen["touches"] = [e for e in result.events if e.state != "up"]
+
+    collect = EventCollector()
     with JsonlSink(out / f"{scene}.events.jsonl") as sink:
-        sink.send(Frame(rec.depth[0], 0.0, 0), events)
+        stats = drive(ArraySource.of_recording(rec, scene), pipe, [collect, sink],
+                      on_result=keep_shown)
+    events, timing = collect.events, stats.ms_per_frame
+    height, shown = seen.get("height"), seen.get("touches", [])
     res = evaluate(truth, events, timing_ms=timing, label=scene,
                    settle_frames=pipe.config.tracking.down_frames)
     plot_depth(rec.depth[show].astype(np.float32) * (rec.depth_scale_m * 1000.0),

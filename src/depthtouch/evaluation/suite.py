@@ -33,7 +33,7 @@ import hashlib
 import json
 import os
 import sys
-from collections.abc import Callable, Iterable, Iterator, Sequence
+from collections.abc import Callable, Sequence
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
@@ -42,7 +42,8 @@ from typing import Any
 from .. import __version__
 from ..config import PipelineConfig
 from ..errors import ConfigError
-from ..types import Frame, TouchEvent
+from ..sources.base import ArraySource, DepthSource
+from ..types import FrameResult, TouchEvent
 from .metrics import GATE_MM, EvalResult, Metrics, Truth, evaluate, read_truth, summarize
 
 if sys.version_info >= (3, 11):
@@ -259,19 +260,28 @@ def ensure_recording(case: SuiteCase, cache: Path | None = None) -> tuple[Path, 
 
 
 # --- running -------------------------------------------------------------------------------------
-def _run(pipe_frames: Iterable[Frame], config: PipelineConfig | None
-         ) -> tuple[list[TouchEvent], list[float]]:
+class EventCollector:
+    """A sink that keeps every event of a run (for the evaluation)."""
+
+    def __init__(self) -> None:
+        self.events: list[TouchEvent] = []
+
+    def send(self, result: FrameResult) -> None:
+        self.events.extend(result.events)
+
+    def close(self) -> None:
+        """Nothing to release."""
+
+
+def run_source(source: DepthSource, config: PipelineConfig | None
+               ) -> tuple[list[TouchEvent], list[float]]:
+    """Run the sensor over a source; returns (events, ms per frame of the touch path)."""
+    from ..driver import drive
     from ..pipeline import Pipeline
 
-    pipe = Pipeline(config)
-    events: list[TouchEvent] = []
-    timing: list[float] = []
-    for frame in pipe_frames:
-        events.extend(pipe.process(frame))
-        if not pipe.learning and "total" in pipe.last_timing_ms:
-            timing.append(pipe.last_timing_ms["total"])
-    events.extend(pipe.finish())
-    return events, timing
+    collect = EventCollector()
+    stats = drive(source, Pipeline(config), [collect])
+    return collect.events, stats.ms_per_frame
 
 
 def run_pipeline(
@@ -281,12 +291,7 @@ def run_pipeline(
     from ..sources import open_source
 
     with open_source(recording) as src:
-        return _run(src.frames(), config)
-
-
-def _sim_frames(rec: Any) -> Iterator[Frame]:
-    for i in range(rec.depth.shape[0]):
-        yield Frame(rec.depth[i], float(rec.timestamps_s[i]), i, rec.depth_scale_m, rec.K)
+        return run_source(src, config)
 
 
 def evaluate_recording(
@@ -328,7 +333,7 @@ def evaluate_case(
     truth = truth_from_dict(rec.truth, case.label)
     out = []
     for cfg in configs:
-        events, timing = _run(_sim_frames(rec), cfg)
+        events, timing = run_source(ArraySource.of_recording(rec, case.label), cfg)
         settle = (cfg or PipelineConfig()).tracking.down_frames
         out.append(evaluate(truth, events, gate_mm=gate_mm, settle_frames=settle,
                             timing_ms=timing, label=case.label))

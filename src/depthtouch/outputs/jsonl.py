@@ -9,15 +9,13 @@ from __future__ import annotations
 
 import json
 import math
-import os
-import tempfile
 from collections.abc import Iterator
 from pathlib import Path
 from types import TracebackType
-from typing import IO
 
 from ..errors import OutputError
-from ..types import Frame, TouchEvent
+from ..files import AtomicTextFile
+from ..types import FrameResult, TouchEvent
 from .base import SinkBase
 
 
@@ -25,43 +23,24 @@ class JsonlSink(SinkBase):
     """Writes one line per event; ``close(commit=True)`` moves the file into place."""
 
     def __init__(self, path: str | Path) -> None:
-        self.path = Path(path)
-        parent = self.path.parent if str(self.path.parent) else Path(".")
-        if self.path.is_dir():
-            raise OutputError(f"{self.path}: is a folder; give a file name for the events")
-        if not parent.is_dir():
-            raise OutputError(f"{self.path}: folder {parent} does not exist; create it first")
-        try:
-            fd, tmp = tempfile.mkstemp(prefix=f".{self.path.name}.", suffix=".part", dir=parent)
-        except OSError as e:
-            raise OutputError(
-                f"{self.path}: cannot write here ({e.strerror}); choose another path"
-            ) from e
-        self._tmp = Path(tmp)
-        self._fh: IO[str] | None = os.fdopen(fd, "w", encoding="utf-8")
+        self._file = AtomicTextFile(path, what="the events")
+        self.path = self._file.path
         self.count = 0
 
-    def send(self, frame: Frame, events: list[TouchEvent]) -> None:
-        fh = self._fh
+    def send(self, result: FrameResult) -> None:
+        fh = self._file.fh
         if fh is None:
             raise OutputError(f"{self.path}: events file already closed")
-        for ev in events:
+        for ev in result.events:
             fh.write(json.dumps(ev.to_dict(), separators=(", ", ": ")) + "\n")
-        self.count += len(events)
+        self.count += len(result.events)
 
     def flush(self) -> None:
-        if self._fh is not None:
-            self._fh.flush()
+        if self._file.fh is not None:
+            self._file.fh.flush()
 
     def close(self, commit: bool = True) -> None:
-        fh, self._fh = self._fh, None
-        if fh is None:
-            return
-        fh.close()
-        if commit:
-            os.replace(self._tmp, self.path)
-        else:
-            self._tmp.unlink(missing_ok=True)
+        self._file.close(commit)
 
     def __exit__(
         self,

@@ -31,9 +31,9 @@ from pythonosc.osc_bundle_builder import IMMEDIATELY, OscBundleBuilder
 from pythonosc.osc_message import OscMessage
 from pythonosc.osc_message_builder import OscMessageBuilder
 
-from ..calibration import Calibration
+from ..checks import parse_address
 from ..errors import ConfigError, OutputError
-from ..types import Frame, TouchEvent
+from ..types import Frame, FrameResult, TouchEvent
 from .base import SinkBase
 
 ADDRESS = "/tuio/2Dcur"
@@ -157,25 +157,7 @@ def parse_hostport(text: str) -> tuple[str, int]:
 
     Raises ConfigError (one line) on an empty host or a port outside [1, 65535].
     """
-    s = text.strip()
-    if s.startswith("["):
-        end = s.find("]")
-        host, rest = (s[1:end], s[end + 1:]) if end > 0 else ("", "")
-        if rest and not rest.startswith(":"):
-            host = ""
-        port_text = rest[1:] if rest else str(DEFAULT_PORT)
-    elif s.count(":") == 1:
-        host, port_text = s.split(":")
-    elif ":" not in s:
-        host, port_text = s, str(DEFAULT_PORT)
-    else:
-        host, port_text = "", ""
-    if not host or not port_text.isdigit() or not 1 <= int(port_text) <= 65535:
-        raise ConfigError(
-            f"TUIO address {text!r} is not HOST:PORT with a port in [1, 65535]; "
-            "e.g. 127.0.0.1:3333"
-        )
-    return host, int(port_text)
+    return parse_address(text, what="TUIO address", default_port=DEFAULT_PORT)
 
 
 @dataclass
@@ -189,9 +171,9 @@ class _Track:
 class TuioSink(SinkBase):
     """Sends one TUIO bundle per frame with touches to ``host:port`` over UDP.
 
-    calibration: when given, positions are normalised to its screen (events' ``sx``, ``sy`` are
-        used when present, else the homography is applied); otherwise to the depth image.
-        Positions outside the screen are clipped to [0, 1].
+    screen_wh: the calibrated screen's size in pixels: positions are the events' ``sx``, ``sy``
+        (added by the pipeline) normalised to it; None: ``x``, ``y`` normalised to the depth
+        image. Positions outside the screen are clipped to [0, 1].
     source_name: the application name in the ``source`` message (``@address`` is appended).
     idle_interval_s: while no touch is reported, ``alive`` (empty) is resent once per this many
         seconds of frame time (default 1.0, range (0, 60]).
@@ -207,7 +189,7 @@ class TuioSink(SinkBase):
         host: str = DEFAULT_HOST,
         port: int = DEFAULT_PORT,
         *,
-        calibration: Calibration | None = None,
+        screen_wh: tuple[int, int] | None = None,
         source_name: str = "depthtouch",
         idle_interval_s: float = 1.0,
         max_packet_bytes: int = MAX_PACKET_BYTES,
@@ -239,7 +221,7 @@ class TuioSink(SinkBase):
             ) from e
         self._sock: socket.socket | None = sock
         self.host, self.port = host, int(port)
-        self.calibration = calibration
+        self.screen_wh = screen_wh
         self.source = source_name if "@" in source_name else f"{source_name}@{local}"
         self.idle_interval_s = float(idle_interval_s)
         self.max_packet_bytes = int(max_packet_bytes)
@@ -254,17 +236,15 @@ class TuioSink(SinkBase):
     # --- state ----------------------------------------------------------------------------------
     def _unit_xy(self, frame: Frame, events: Sequence[TouchEvent]) -> np.ndarray:
         """(N, 2) positions in [0, 1] for the events, in the calibrated screen or depth image."""
-        xy = np.array([[e.x, e.y] for e in events], dtype=np.float64).reshape(-1, 2)
-        cal = self.calibration
-        if cal is None:
+        screen = self.screen_wh
+        if screen is None:
+            xy = np.array([[e.x, e.y] for e in events], dtype=np.float64).reshape(-1, 2)
             w, h = frame.resolution_wh
             unit = xy / np.array([max(w, 1), max(h, 1)], dtype=np.float64)
         else:
-            sxy = cal.to_screen(xy)
-            for i, e in enumerate(events):
-                if "sx" in e.extra and "sy" in e.extra:
-                    sxy[i] = (float(e.extra["sx"]), float(e.extra["sy"]))
-            unit = sxy / np.asarray(cal.screen_wh, dtype=np.float64)
+            sxy = np.array([[float(e.extra.get("sx", math.nan)), float(e.extra.get("sy", math.nan))]
+                            for e in events], dtype=np.float64).reshape(-1, 2)
+            unit = sxy / np.asarray(screen, dtype=np.float64)
         return np.clip(np.nan_to_num(unit, nan=0.5), 0.0, 1.0)
 
     def _update(self, frame: Frame, events: Sequence[TouchEvent]) -> list[TuioCursor]:
@@ -294,10 +274,11 @@ class TuioSink(SinkBase):
     def __enter__(self) -> TuioSink:
         return self
 
-    def send(self, frame: Frame, events: list[TouchEvent]) -> None:
+    def send(self, result: FrameResult) -> None:
         """Update the live touches from this frame's events and send what the frame needs."""
         if self._sock is None:
             return
+        frame, events = result.frame, result.events
         cursors = self._update(frame, events)
         t = float(frame.timestamp_s)
         last = self._last_send_t

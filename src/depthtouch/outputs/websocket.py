@@ -33,7 +33,7 @@ from typing import Any, Protocol
 
 import numpy as np
 
-from ..types import Frame, TouchEvent
+from ..types import FrameResult, TouchEvent
 from .base import SinkBase
 
 log = logging.getLogger(__name__)
@@ -298,10 +298,8 @@ class WebSocketSink(SinkBase):
     """Per-frame event sink that broadcasts each frame's events and a status line.
 
     broadcaster: where messages go (owned by :class:`depthtouch.web.server.WebServer`).
-    timing: optional object with ``last_timing_ms`` (dict with key ``"total"``, ms) and
-        ``learning`` (bool), typically the Pipeline; read once per frame for the status line.
-    calibration: optional object with ``to_screen(xy (N, 2)) -> (N, 2)``; events without ``sx``
-        get ``sx``, ``sy`` from it.
+    Each frame's status line (ms per frame, learning) comes with its result; ``sx``, ``sy`` are
+    the pipeline's, on the events.
     fps_window: frames over which fps is measured from the frame timestamps (default 30).
 
     :meth:`send` never blocks and never raises on a client problem.
@@ -310,13 +308,11 @@ class WebSocketSink(SinkBase):
     def __init__(
         self,
         broadcaster: Broadcaster,
-        timing: Any | None = None,
-        calibration: Any | None = None,
         fps_window: int = 30,
     ) -> None:
         self.broadcaster = broadcaster
-        self.timing = timing
-        self.calibration = calibration
+        self._ms: float | None = None
+        self._learning = False
         self._times: collections.deque[float] = collections.deque(maxlen=max(2, fps_window))
         self._active: set[int] = set()
         self.frames = 0
@@ -328,8 +324,12 @@ class WebSocketSink(SinkBase):
         self._times.clear()
         self._active.clear()
 
-    def send(self, frame: Frame, events: list[TouchEvent]) -> None:
+    def send(self, result: FrameResult) -> None:
         t0 = time.perf_counter()
+        frame, events = result.frame, result.events
+        total = result.timing_ms.get("total")
+        self._ms = round(float(total), 3) if total is not None else None
+        self._learning = result.learning
         wh = frame.resolution_wh
         if wh != self._resolution_wh:
             self._resolution_wh = wh
@@ -354,7 +354,6 @@ class WebSocketSink(SinkBase):
                 self._active.discard(ev.id)
             else:
                 self._active.add(ev.id)
-        events = self._with_screen(events)
         text = encode_message(frame_message(frame_index, t_s, events, self.status()))
         self.frames += 1
         self.broadcaster.post(TEXT, text, t0)
@@ -365,28 +364,8 @@ class WebSocketSink(SinkBase):
         fps = None
         if len(self._times) >= 2 and self._times[-1] > self._times[0]:
             fps = round((len(self._times) - 1) / (self._times[-1] - self._times[0]), 2)
-        ms = None
-        learning = False
-        if self.timing is not None:
-            timing = getattr(self.timing, "last_timing_ms", None) or {}
-            total = timing.get("total")
-            ms = round(float(total), 3) if total is not None else None
-            learning = bool(getattr(self.timing, "learning", False))
-        return {"fps": fps, "ms_per_frame": ms, "touches": len(self._active), "learning": learning}
-
-    def _with_screen(self, events: Sequence[TouchEvent]) -> Sequence[TouchEvent]:
-        cal = self.calibration
-        todo = [i for i, ev in enumerate(events) if "sx" not in ev.extra]
-        if cal is None or not todo:
-            return events
-        xy = np.array([[events[i].x, events[i].y] for i in todo], dtype=np.float64)
-        sxy = np.asarray(cal.to_screen(xy), dtype=np.float64).reshape(-1, 2)
-        out = list(events)
-        for row, i in enumerate(todo):
-            ev = events[i]
-            extra = {**ev.extra, "sx": float(sxy[row, 0]), "sy": float(sxy[row, 1])}
-            out[i] = TouchEvent(ev.frame, ev.t, ev.id, ev.state, ev.x, ev.y, extra)
-        return out
+        return {"fps": fps, "ms_per_frame": self._ms, "touches": len(self._active),
+                "learning": self._learning}
 
     def close(self) -> None:
         """Nothing to release: the server owns the connections."""

@@ -16,21 +16,33 @@ from pathlib import Path
 from typing import Any
 
 from ..errors import SourceError
-from .base import DepthSource, SourceBase
+from .base import ArraySource, DepthSource, SourceBase
 from .npz import NpzSource, write_npz
 from .png import PngFolderSource, write_png_folder
 
 __all__ = [
+    "ArraySource",
     "DepthSource",
     "NpzSource",
     "PngFolderSource",
     "SourceBase",
+    "is_live_spec",
     "open_source",
     "write_npz",
     "write_png_folder",
 ]
 
+#: Every kind of source a user can name, in one place.
 SOURCE_KINDS = ("FILE.npz", "FOLDER/", "FILE.bag", "FILE.db3", "realsense", "openni", "sim:SCENE")
+#: Source specs that are cameras: frames arrive at the device's pace. Anything else is a
+#: recording or the simulator, which a live run plays at its recorded pace, like a camera.
+CAMERA_KINDS = ("realsense", "openni")
+
+
+def is_live_spec(spec: str | Path) -> bool:
+    """True for camera specs (``realsense[:SERIAL]``, ``openni[:URI]``)."""
+    text = str(spec)
+    return any(text == p or text.startswith(p + ":") for p in CAMERA_KINDS)
 
 
 def open_source(spec: str | Path, **options: Any) -> DepthSource:

@@ -158,3 +158,35 @@ def validate_timestamps(ts: object, n: int, where: str) -> np.ndarray:
             f"{t[i]!r}); fix or drop the repeated frames"
         )
     return t
+
+
+class ArraySource(SourceBase):
+    """Frames held in memory: depth uint16 (N, H, W), timestamps_s (N,) seconds; for rendered
+    simulator recordings and tests. The arrays are read, never copied or changed."""
+
+    def __init__(self, depth: np.ndarray, timestamps_s: np.ndarray, depth_scale_m: float = 0.001,
+                 K: np.ndarray | None = None, *, fps: float | None = None,
+                 name: str = "arrays") -> None:
+        if depth.ndim != 3:
+            raise SourceError(f"{name}: depth has shape {depth.shape}; expected (N, H, W)")
+        self.depth = depth
+        self.timestamps_s = validate_timestamps(timestamps_s, depth.shape[0], name)
+        self.depth_scale_m = validate_depth_scale(depth_scale_m, name)
+        self.K = validate_K(K, name)
+        self.fps, self.name = fps, name
+        self.resolution_wh = (int(depth.shape[2]), int(depth.shape[1]))
+
+    @classmethod
+    def of_recording(cls, rec: object, name: str = "recording") -> ArraySource:
+        """A source over a rendered recording (anything with depth, timestamps_s,
+        depth_scale_m, K and fps, e.g. :class:`depthtouch.sim.SimRecording`)."""
+        return cls(rec.depth, rec.timestamps_s, rec.depth_scale_m, rec.K,  # type: ignore[attr-defined]
+                   fps=getattr(rec, "fps", None), name=name)
+
+    def __len__(self) -> int:
+        return int(self.depth.shape[0])
+
+    def frames(self) -> Iterator[Frame]:
+        depth, ts, scale, K = self.depth, self.timestamps_s, self.depth_scale_m, self.K
+        for i in range(depth.shape[0]):
+            yield Frame(depth[i], float(ts[i]), i, scale, K)

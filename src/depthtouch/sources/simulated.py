@@ -6,17 +6,15 @@ by frame like a recording. The ground truth is available as :attr:`SimSource.tru
 
 from __future__ import annotations
 
-from collections.abc import Iterator
 from typing import Any
 
 from ..errors import ConfigError, SourceError
-from ..types import Frame
-from .base import SourceBase
+from .base import ArraySource
 
 _OPTIONS = ("camera", "distance_m", "tilt_deg", "surface", "seed", "fps", "noise")
 
 
-class SimSource(SourceBase):
+class SimSource(ArraySource):
     """Frames of a simulated scene (see :func:`depthtouch.sim.render_scene` for the options)."""
 
     def __init__(self, scene: str, **options: Any) -> None:
@@ -34,20 +32,9 @@ class SimSource(SourceBase):
         except ConfigError as e:
             raise SourceError(f"sim:{scene}: {e}") from e
         rec = self.recording
-        self.name = f"sim:{scene}"
-        self.depth_scale_m = rec.depth_scale_m
-        self.K = rec.K
-        self.fps = rec.fps
-        self.resolution_wh = (int(rec.depth.shape[2]), int(rec.depth.shape[1]))
+        super().__init__(rec.depth, rec.timestamps_s, rec.depth_scale_m, rec.K, fps=rec.fps,
+                         name=f"sim:{scene}")
         self.truth = rec.truth
-
-    def __len__(self) -> int:
-        return int(self.recording.depth.shape[0])
-
-    def frames(self) -> Iterator[Frame]:
-        rec = self.recording
-        for i in range(rec.depth.shape[0]):
-            yield Frame(rec.depth[i], float(rec.timestamps_s[i]), i, rec.depth_scale_m, rec.K)
 
 
 def open_sim_source(scene: str, **options: Any) -> SimSource:

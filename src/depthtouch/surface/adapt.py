@@ -24,8 +24,8 @@ import numba
 import numpy as np
 
 from ..config import AdaptConfig
-from ..touch.regions import BandBounds, refresh_rows
-from ..touch.runs import dilate3x3, part_levels
+from ..runs import dilate3x3, part_levels
+from .bounds import BandBounds, refresh_rows
 
 _SCALE = 4  # the whole-frame checks run on a 1/4 resolution view
 _BLOCK = 8  # the bump check compares a 1/8 view (2x2 means, every 8th pixel)

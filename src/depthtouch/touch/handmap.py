@@ -13,8 +13,8 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from .regions import HAND_SCALE, BandBounds
-from .runs import dilate3x3, part_levels
+from ..runs import dilate3x3, part_levels
+from ..surface.bounds import HAND_SCALE, BandBounds
 
 _S = HAND_SCALE  # a compile-time constant in the kernels below
 _C0 = _S // 2 - 1 if _S % 2 == 0 else _S // 2  # the two middle rows / columns of a block

@@ -29,9 +29,10 @@ from __future__ import annotations
 import numpy as np
 
 from ..config import TouchPointConfig
+from ..surface.bounds import HAND_SCALE, BandBounds
 from ..types import TouchPoints
 from .handmap import hand_map
-from .regions import HAND_SCALE, BandBounds, Regions
+from .regions import Regions
 from .tipkernel import frame_points
 
 

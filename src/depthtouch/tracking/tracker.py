@@ -50,7 +50,6 @@ class Track:
     missing: int = 0
     active: bool = False
     vel: XY = (0.0, 0.0)
-    out_xy: XY | None = None  # last reported (filtered) position, px
     hand_at_border: bool = True
     merged: int = 0  # consecutive frames hidden in a neighbour's region
 
@@ -115,6 +114,15 @@ class Tracker:
     def reset(self) -> None:
         """Forget all tracks; ids keep increasing (never reused within a run)."""
         self.tracks = []
+
+    def use_scale(self, scale_mm_per_px: float | None) -> None:
+        """Gate in mm with this many mm per px from now on (None: gate in pixels)."""
+        self.scale_mm_per_px = scale_mm_per_px
+
+    def held_at_border(self) -> list[XY]:
+        """Image positions (px) of the active contacts whose hand reaches in from the border:
+        a finger held still there must never become surface."""
+        return [t.xy_px for t in self.tracks if t.active and t.hand_at_border]
 
     @property
     def gate(self) -> float:

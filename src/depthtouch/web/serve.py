@@ -1,25 +1,74 @@
-"""``depthtouch serve``: a depth source, the pipeline and the web page, wired together.
+"""The web page wired to a pipeline, for ``depthtouch serve`` and ``depthtouch run --serve``.
 
-:class:`SourceLoop` reads a source in a background thread, paces recordings and the simulator at
-their own timestamps (so a person can watch), runs the pipeline on each frame and hands the
-events and a few height maps per second to a :class:`~depthtouch.web.server.WebServer`. A
-finished recording starts again (the surface is learned again, the page is told to clear its
-trails) or, with ``loop=False``, ends with a message on the page.
+:class:`WebPage` starts a :class:`~depthtouch.web.server.WebServer` and gives the loop its sinks:
+the WebSocket stream of every frame's events and status, and a few height maps per second (only
+while a page is connected). A calibration fitted on the page goes to the pipeline, which maps
+the events with it from the next frame on.
+
+``serve`` runs the one loop (:func:`depthtouch.driver.drive`) in a background thread: it paces
+recordings and the simulator at their own timestamps (so a person can watch) and starts a
+finished recording again (the surface is learned again, the page is told to clear its trails),
+or, with ``loop=False``, ends with a message on the page.
 """
 
 from __future__ import annotations
 
-import signal
 import threading
-import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from ..driver import DriveStats, Pacer, drive
 from ..errors import DepthTouchError, OutputError
+from ..outputs.base import Sink
 from ..sources.base import DepthSource
+from ..types import FrameResult
 from .server import WebServer
+
+
+class _Heights:
+    """A sink: the height maps of the frames, when due."""
+
+    def __init__(self, server: WebServer) -> None:
+        self.server = server
+
+    def send(self, result: FrameResult) -> None:
+        self.server.send_height(result)
+
+    def close(self) -> None:
+        """Nothing to release: the page's owner stops the server."""
+
+
+class WebPage:
+    """The web page of a running sensor: a context manager that starts and stops the server.
+
+    address: "HOST:PORT" (see :func:`depthtouch.checks.parse_address`; port 0 = any free one).
+    pipeline: gets the page's calibration (``set_calibration``); its own calibration is shown.
+    server_options: more keywords for :class:`WebServer` (calibration_out, allowed_origins...).
+    """
+
+    def __init__(self, address: str, pipeline: Any, *, source_name: str = "",
+                 **server_options: Any) -> None:
+        from ..checks import parse_address
+
+        host, port = parse_address(address, what="web address", default_port=8765,
+                                   default_host="127.0.0.1", allow_port_zero=True)
+        self.server = WebServer(host, port, calibration=pipeline.calibration,
+                                source_name=source_name, **server_options)
+        self.server.on_calibration = pipeline.set_calibration
+        self.sinks: list[Sink] = [self.server.sink, _Heights(self.server)]
+
+    @property
+    def url(self) -> str:
+        return self.server.url
+
+    def __enter__(self) -> WebPage:
+        self.server.start()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.server.stop()
 
 
 @dataclass
@@ -32,46 +81,31 @@ class LoopStats:
 
 
 class SourceLoop:
-    """Source -> pipeline -> web server, in a background thread.
+    """Source -> pipeline -> web page, in a background thread, pass after pass.
 
-    open_source: returns a fresh source (called again for each pass when looping).
-    pipeline: an object with ``process(frame) -> list[TouchEvent]``, ``height_map_mm(frame)``,
-        ``reset()`` and (optional) ``last_timing_ms`` / ``learning`` for the status line.
-    realtime: sleep until each frame's timestamp (relative to the first frame) before processing
-        it (default True); False processes as fast as possible.
+    open_source: returns a fresh source (called again for each pass unless ``reuse_source``).
+    pipeline: a :class:`~depthtouch.pipeline.Pipeline`.
+    page: the :class:`WebPage` (or anything with ``server`` and ``sinks``).
+    realtime: play at the frames' own pace (default True); False as fast as possible.
     loop: start a finished recording again (default True); False stops after one pass.
     max_passes: stop after this many passes even when looping (None = never).
-    reuse_source: open the source once and iterate its ``frames()`` again for each pass
-        (default False: open a fresh source per pass). Right for recordings held in memory and
-        for the simulator, which renders its scene when opened.
+    reuse_source: iterate the same source again for each pass (recordings in memory and the
+        simulator, which renders its scene when opened).
 
     A DepthTouchError from the source or the pipeline stops the loop and is kept in ``error``
     (re-raised by :meth:`join`); :meth:`stop` ends it at the next frame.
     """
 
-    def __init__(
-        self,
-        open_source: Callable[[], DepthSource],
-        pipeline: Any,
-        server: WebServer,
-        *,
-        realtime: bool = True,
-        loop: bool = True,
-        max_passes: int | None = None,
-        reuse_source: bool = False,
-    ) -> None:
-        self.open_source = open_source
-        self.pipeline = pipeline
-        self.server = server
-        self.realtime = realtime
-        self.loop = loop
-        self.max_passes = max_passes
+    def __init__(self, open_source: Callable[[], DepthSource], pipeline: Any, page: Any, *,
+                 realtime: bool = True, loop: bool = True, max_passes: int | None = None,
+                 reuse_source: bool = False) -> None:
+        self.open_source, self.pipeline, self.page = open_source, pipeline, page
+        self.realtime, self.loop, self.max_passes = realtime, loop, max_passes
         self.reuse_source = reuse_source
         self.stats = LoopStats()
         self.error: BaseException | None = None
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
-        server.attach_pipeline(pipeline)
 
     def start(self) -> SourceLoop:
         self._thread = threading.Thread(target=self._run, name="depthtouch-source", daemon=True)
@@ -96,65 +130,43 @@ class SourceLoop:
         return True
 
     def _run(self) -> None:
+        server = self.page.server
         source: DepthSource | None = None
         try:
             while not self._stop.is_set():
                 if source is None:
                     source = self.open_source()
-                self._one_pass(source)
-                self.stats.passes += 1
+                pace = Pacer(1.0, wait=self._stop.wait) if self.realtime else None
+                stats = drive(source, self.pipeline, self.page.sinks, pace=pace, stop=self._stop)
+                self._count(stats, source)
                 if not self.reuse_source:
                     source.close()
                     source = None
                 if self._stop.is_set():
                     break
-                done = not self.loop or (
-                    self.max_passes is not None and self.stats.passes >= self.max_passes
-                )
-                if done:
-                    self.server.notify({"type": "info", "message": "the recording has finished"})
+                if not self.loop or (self.max_passes is not None
+                                     and self.stats.passes >= self.max_passes):
+                    server.notify({"type": "info", "message": "the recording has finished"})
                     break
                 self.pipeline.reset()
-                self.server.sink.reset()
-                self.server.notify({"type": "reset", "message": "the recording starts again"})
+                server.sink.reset()
+                server.notify({"type": "reset", "message": "the recording starts again"})
         except DepthTouchError as e:
             self.error = e
-            self.server.notify({"type": "info", "message": f"stopped: {e}"})
+            server.notify({"type": "info", "message": f"stopped: {e}"})
         except BaseException as e:  # a bug: keep it for join() to re-raise with its traceback
             self.error = e
         finally:
             if source is not None:
                 source.close()
 
-    def _one_pass(self, source: DepthSource) -> None:
-        t_first: float | None = None
-        wall_first = 0.0
-        sink = self.server.sink
-        last_frame = None
-        for frame in source.frames():
-            if self._stop.is_set():
-                return
-            last_frame = frame
-            if self.realtime:
-                if t_first is None:
-                    t_first, wall_first = frame.timestamp_s, time.monotonic()
-                delay = wall_first + (frame.timestamp_s - t_first) - time.monotonic()
-                if delay > 0 and self._stop.wait(delay):
-                    return
-            events = self.pipeline.process(frame)
-            sink.send(frame, events)
-            self.stats.frames += 1
-            self.stats.events += len(events)
-            if self.server.height_due(frame.timestamp_s):
-                self.server.publish_height(frame, self.pipeline.height_map_mm(frame))
-        if last_frame is None:
+    def _count(self, stats: DriveStats, source: DepthSource) -> None:
+        if stats.frames == 0 and not self._stop.is_set():
             raise OutputError(f"{getattr(source, 'name', 'the source')} gave no frames; "
                               "check the recording")
-        finish = getattr(self.pipeline, "finish", None)
-        if callable(finish) and not self._stop.is_set():
-            ended = list(finish())  # the touches still down get their "up"
-            if ended:
-                sink.send(last_frame, ended)
+        self.stats.frames += stats.frames
+        self.stats.events += stats.events
+        self.stats.passes += 1
 
 
 def run_serve(
@@ -168,6 +180,7 @@ def run_serve(
     realtime: bool = True,
     loop: bool = True,
     surface_frames: int | None = None,
+    allowed_origins: Sequence[str] = (),
     announce: Callable[[str], None] = print,
 ) -> LoopStats:
     """Serve the page for a source until Ctrl-C, or until a recording ends with ``loop=False``.
@@ -175,22 +188,21 @@ def run_serve(
     Live cameras (``realsense``, ``openni``) are never paced: they deliver frames in real time.
     Errors (bad source, port taken, bad calibration file) raise DepthTouchError subclasses.
     """
+    from ..calibration import load_calibration
     from ..config import PipelineConfig, load_config
+    from ..files import check_output_path
     from ..pipeline import Pipeline
-    from ..sources import open_source
+    from ..sources import is_live_spec, open_source
 
     config = load_config(config_path) if config_path else PipelineConfig()
-    calibration = None
-    if calibration_path:
-        from ..calibration import load_calibration
-
-        calibration = load_calibration(calibration_path)
+    calibration = load_calibration(calibration_path) if calibration_path else None
     out = Path(calibration_out)
-    if out.is_dir() or not (out.parent if str(out.parent) else Path(".")).is_dir():
+    try:
+        check_output_path(out, what="the calibration")
+    except OutputError:
         raise OutputError(
             f"--calibration-out {out}: not a file in an existing folder; give a file path"
-        )
-    live = source_spec.split(":")[0] in _LIVE_SOURCES
+        ) from None
     opened = [open_source(source_spec)]  # fail early, with the source's own message
     name = opened[0].name
     # sources that know their length (npz, PNG folder, simulator) can be played again as they are
@@ -201,42 +213,26 @@ def run_serve(
         return opened.pop() if opened else open_source(source_spec)
 
     try:
-        pipeline = Pipeline(config, surface_frames=surface_frames)
-        server = WebServer(host, port, calibration=calibration, calibration_out=out,
-                           source_name=name)
-        server.start()
+        pipeline = Pipeline(config, calibration=calibration, surface_frames=surface_frames)
+        page = WebPage(f"[{host}]:{port}" if ":" in host else f"{host}:{port}", pipeline,
+                       source_name=name, calibration_out=out, allowed_origins=allowed_origins)
+        page.__enter__()
     except BaseException:
         opened[0].close()
         raise
-    runner = SourceLoop(next_source, pipeline, server, realtime=realtime and not live,
-                        loop=loop, reuse_source=reuse)
-    old_term = _stop_on_sigterm()
+    runner = SourceLoop(next_source, pipeline, page,
+                        realtime=realtime and not is_live_spec(source_spec), loop=loop,
+                        reuse_source=reuse)
     try:
         runner.start()
-        announce(f"depthtouch: serving {name} at {server.url} (Ctrl-C to stop)")
+        announce(f"depthtouch: serving {name} at {page.url} (Ctrl-C to stop)")
         while not runner.join(0.5):
             pass
         announce(f"depthtouch: {name} has finished ({runner.stats.frames} frames)")
     finally:
         runner.stop()
         runner.join(5.0, raise_error=False)
-        server.stop()
+        page.__exit__()
         for source in opened:
             source.close()
-        if old_term is not None:
-            signal.signal(signal.SIGTERM, old_term)
     return runner.stats
-
-
-_LIVE_SOURCES = ("realsense", "openni")
-
-
-def _interrupt(signum: int, frame: Any) -> None:
-    raise KeyboardInterrupt
-
-
-def _stop_on_sigterm() -> Any:
-    """Make SIGTERM (a service manager stopping us) end the serve loop like Ctrl-C."""
-    if threading.current_thread() is not threading.main_thread():
-        return None
-    return signal.signal(signal.SIGTERM, _interrupt)

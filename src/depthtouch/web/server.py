@@ -31,7 +31,7 @@ import ipaddress
 import json
 import logging
 import threading
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from pathlib import Path
 from typing import Any
 from urllib.parse import urlsplit
@@ -42,7 +42,7 @@ from aiohttp import WSMsgType, web
 
 from ..errors import CalibrationError, DepthTouchError, OutputError
 from ..outputs.websocket import BINARY, TEXT, Broadcaster, WebSocketSink, encode_message
-from ..types import Frame, TouchEvent
+from ..types import Frame, FrameResult, TouchEvent
 
 log = logging.getLogger(__name__)
 
@@ -161,6 +161,7 @@ class WebServer:
         self.resolution_wh: tuple[int, int] | None = None
         self.calibration: Any | None = None
         self.calibration_error_px: float | None = None
+        self.on_calibration: Callable[[Any], None] | None = None
         if calibration is not None:
             self.set_calibration(calibration)
         self._last_height_t: float | None = None
@@ -259,19 +260,17 @@ class WebServer:
             self._runner = None
 
     # --- publishing (any thread) ----------------------------------------------------------------
-    def attach_pipeline(self, pipeline: Any) -> None:
-        """Read ``last_timing_ms["total"]`` and ``learning`` of this object for the status line."""
-        self.sink.timing = pipeline
-
     def set_resolution(self, resolution_wh: tuple[int, int]) -> None:
         """Tell pages the depth-image size (sent automatically on the first frame)."""
         self.resolution_wh = (int(resolution_wh[0]), int(resolution_wh[1]))
         self.notify({"type": "meta", "resolution_wh": list(self.resolution_wh)})
 
     def set_calibration(self, calibration: Any | None, error_px: float | None = None) -> None:
-        """Use this calibration for sx, sy from now on and tell the pages."""
+        """Use this calibration for sx, sy from now on (``on_calibration`` hands it to the
+        pipeline, which maps the events) and tell the pages."""
         self.calibration = calibration
-        self.sink.calibration = calibration
+        if self.on_calibration is not None:
+            self.on_calibration(calibration)
         if error_px is None and calibration is not None:
             err = getattr(calibration, "reprojection_error_px", None)
             error_px = float(err) if err is not None else None
@@ -288,6 +287,13 @@ class WebServer:
             return False
         last = self._last_height_t
         return last is None or t_s < last or t_s - last >= 1.0 / self.height_hz
+
+    def send_height(self, result: FrameResult) -> bool:
+        """Send the height map of a frame's result if one is due (a few per second, and only
+        while a page is connected: the map is computed only then)."""
+        if not self.height_due(result.frame.timestamp_s):
+            return False
+        return self.publish_height(result.frame, result.height_map_mm())
 
     def publish_height(self, frame: Frame, height_mm: np.ndarray) -> bool:
         """Send the colour height map of ``frame`` if due; returns whether it was sent."""

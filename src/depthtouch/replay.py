@@ -1,24 +1,29 @@
-"""Running the pipeline over a source into sinks: the replay command and the pieces the live loop,
-the evaluation and the web server share.
+"""``depthtouch replay``: the sensor over a recording, as fast as it goes or at its own pace.
+
+The loop is :func:`depthtouch.driver.drive`; this adds the checks a recording allows before the
+first frame (long enough to learn the surface, the right size for a saved one, outputs that are
+not the recording itself) and a progress bar.
 """
 
 from __future__ import annotations
 
 import contextlib
-import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from .config import PipelineConfig
+from .driver import DriveStats, drive
 from .errors import ConfigError, SourceError
-from .outputs.base import EventSink
+from .files import check_output_path
+from .outputs import open_outputs
+from .outputs.base import Sink
 from .pipeline import Pipeline
 from .sources import DepthSource, open_source
 from .surface.model import load_surface
-from .types import Frame, TouchEvent
+from .types import FrameResult
 
 
 @dataclass
@@ -33,6 +38,7 @@ class RunSummary:
     touches: int = 0
     ms_per_frame: list[float] = field(default_factory=list)
     outputs: list[str] = field(default_factory=list)
+    interrupted: bool = False
 
     @property
     def median_ms(self) -> float:
@@ -51,68 +57,10 @@ class RunSummary:
             lines.append(
                 f"touch path: median {self.median_ms:.3f} ms, p95 {self.p95_ms:.3f} ms per frame"
             )
+        if self.interrupted:
+            lines.append("interrupted: the outputs hold the frames replayed so far")
         lines += [f"wrote {o}" for o in self.outputs]
         return "\n".join(lines)
-
-
-def process_stream(
-    source: DepthSource, pipeline: Pipeline, sinks: list[EventSink] | None = None
-) -> Iterator[tuple[Frame, list[TouchEvent]]]:
-    """Run ``pipeline`` over every frame of ``source``, sending each frame to ``sinks``.
-
-    Yields (frame, events). At the end of the stream the touches still active are ended with
-    ``up`` on the last frame (yielded with that frame again).
-    """
-    sinks = sinks or []
-    last: Frame | None = None
-    for frame in source.frames():
-        events = pipeline.process(frame)
-        for s in sinks:
-            s.send(frame, events)
-        last = frame
-        yield frame, events
-    if last is not None:
-        tail = pipeline.finish()
-        if tail:
-            for s in sinks:
-                s.send(last, tail)
-            yield last, tail
-
-
-def build_sinks(
-    events_path: str | Path | None = None,
-    tuio: str | None = None,
-    calibration: object | None = None,
-) -> list[EventSink]:
-    """The sinks a command asked for (JSON Lines file, TUIO UDP)."""
-    from .outputs.jsonl import JsonlSink
-
-    sinks: list[EventSink] = []
-    try:
-        if events_path:
-            sinks.append(JsonlSink(events_path))
-        if tuio:
-            from .outputs.tuio import TuioSink, parse_hostport
-
-            host, port = parse_hostport(tuio)
-            sinks.append(TuioSink(host, port, calibration=calibration))  # type: ignore[arg-type]
-    except BaseException:
-        # a later sink failed: the ones already open keep nothing (no temporary events file)
-        for s in sinks:
-            if isinstance(s, JsonlSink):
-                s.close(commit=False)
-            else:
-                s.close()
-        raise
-    return sinks
-
-
-def load_calibration_file(path: str | Path | None) -> object | None:
-    if not path:
-        return None
-    from .calibration import load_calibration
-
-    return load_calibration(path)
 
 
 def replay(
@@ -127,17 +75,20 @@ def replay(
     tuio: str | None = None,
     calibration_path: str | Path | None = None,
     progress: bool = False,
+    realtime: float | None = None,
+    extra_sinks: Sequence[Sink] = (),
 ) -> RunSummary:
-    """Run the sensor over a recording as fast as possible; write the outputs asked for.
+    """Run the sensor over a recording; write the outputs asked for.
 
+    realtime: None (as fast as possible) or a speed factor (1.0 = the recording's own pace).
     Errors a user can fix (bad file, too short, unwritable output) raise DepthTouchError before
-    anything is written; the events file appears only when the run completes.
+    anything is written; the events file appears only when the run completes (or on Ctrl-C,
+    with the events so far: the touches still down end with ``up``).
     """
     cfg = config or PipelineConfig()
     if filter_name:
         cfg = cfg.replace(filter={"name": filter_name})
     surface = load_surface(surface_path) if surface_path else None
-    calibration = load_calibration_file(calibration_path)
     if surface_frames is not None and surface_frames < 2:
         raise ConfigError(f"--surface-frames {surface_frames} is too small; give at least 2")
     rec_path = Path(str(recording))
@@ -145,49 +96,37 @@ def replay(
         if out and rec_path.exists() and Path(out).resolve() == rec_path.resolve():
             raise SourceError(f"{out}: is the recording itself; give another output file name")
     if save_surface_path:
-        parent = Path(save_surface_path).parent
-        if Path(save_surface_path).is_dir():
-            raise SourceError(
-                f"{save_surface_path}: is a folder; give a file name for the surface"
-            )
-        if not (parent if str(parent) else Path(".")).is_dir():
-            raise SourceError(
-                f"{save_surface_path}: folder {parent} does not exist; create it first"
-            )
-    pipeline = Pipeline(cfg, surface=surface, calibration=calibration,  # type: ignore[arg-type]
-                        surface_frames=surface_frames, strict=True)
+        check_output_path(save_surface_path, what="the surface", error=SourceError)
+    summary = RunSummary(source=str(recording))
     with contextlib.ExitStack() as stack:
         source = stack.enter_context(open_source(recording))
         _check_surface_fits(source, surface, surface_frames, cfg)
-        sinks = build_sinks(events_path, tuio, calibration)
-        for s in sinks:
-            stack.enter_context(s)  # type: ignore[arg-type]
-        summary = RunSummary(source=str(recording))
+        outputs = stack.enter_context(open_outputs(events_path=events_path, tuio=tuio,
+                                                   calibration_path=calibration_path))
+        pipeline = Pipeline(cfg, surface=surface, calibration=outputs.calibration,
+                            surface_frames=surface_frames, strict=True)
         n_total = len(source) if hasattr(source, "__len__") else None  # type: ignore[arg-type]
-        bar = _progress(progress, n_total)
-        touched: set[int] = set()
-        for _frame, events in process_stream(source, pipeline, sinks):
-            if "total" in pipeline.last_timing_ms and not pipeline.learning:
-                summary.ms_per_frame.append(pipeline.last_timing_ms["total"])
-                pipeline.last_timing_ms = {}
-            touched.update(e.id for e in events)
-            if bar is not None:
-                bar.advance()
-        if bar is not None:
-            bar.close()
-        if pipeline.surface is None:
+        bar = stack.enter_context(_progress(progress, n_total))
+        stats = DriveStats()
+        try:
+            drive(source, pipeline, [*outputs.sinks, *extra_sinks], pace=realtime,
+                  on_result=bar, stats=stats)
+        except KeyboardInterrupt:
+            summary.interrupted = True
+        if pipeline.learning and not summary.interrupted:
             raise SourceError(
                 f"{recording}: only {pipeline.stats.frames} frames, fewer than the surface "
                 "learning needs; record a longer empty start or give --surface-frames / --surface"
             )
+        outputs.commit()
         summary.frames = pipeline.stats.frames
         summary.learning_frames = pipeline.stats.learning_frames
         summary.skipped_frames = pipeline.stats.skipped_frames
-        summary.events = pipeline.stats.events
-        summary.touches = len(touched)
-        if events_path:
-            summary.outputs.append(str(events_path))
-    if save_surface_path and pipeline.surface is not None:
+        summary.events = stats.events
+        summary.touches = stats.touches
+        summary.ms_per_frame = stats.ms_per_frame
+    summary.outputs += outputs.written
+    if save_surface_path and not pipeline.learning:
         pipeline.surface.save(save_surface_path)
         summary.outputs.append(str(save_surface_path))
     return summary
@@ -225,24 +164,32 @@ def _check_surface_fits(
 
 
 class _Bar:
+    """A rich progress bar on stderr (a terminal only); called with each result."""
+
     def __init__(self, total: int | None) -> None:
         from rich.progress import Progress
 
         self._p = Progress(transient=True)
-        self._p.start()
         self._task = self._p.add_task("replaying", total=total)
-        self._last = time.monotonic()
 
-    def advance(self) -> None:
-        self._p.advance(self._task)
+    def __call__(self, result: FrameResult) -> None:
+        if result.status != "ended":
+            self._p.advance(self._task)
 
-    def close(self) -> None:
+    def __enter__(self) -> _Bar:
+        self._p.start()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
         self._p.stop()
 
 
-def _progress(enabled: bool, total: int | None) -> _Bar | None:
+@contextlib.contextmanager
+def _progress(enabled: bool, total: int | None) -> Iterator[Callable[[FrameResult], None] | None]:
     import sys
 
     if not enabled or not sys.stderr.isatty():
-        return None
-    return _Bar(total)
+        yield None
+        return
+    with _Bar(total) as bar:
+        yield bar
