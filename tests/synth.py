@@ -90,3 +90,10 @@ def make_recording(
 
 def write_recording(path, depth, ts):  # type: ignore[no-untyped-def]
     return write_npz(path, depth, ts, 0.001, K_640)
+
+
+def result_of(frame, events):  # type: ignore[no-untyped-def]
+    """The pipeline's result for a frame with these events (for driving sinks in tests)."""
+    from depthtouch.types import FrameResult, TouchPoints
+
+    return FrameResult(frame, list(events), TouchPoints.empty(), "ok", {"total": 0.25})

@@ -18,6 +18,7 @@ from depthtouch.gestures import (
     recognize_all,
 )
 from depthtouch.types import TouchEvent, TouchState
+from synth import result_of
 
 FPS = 30.0
 Track = tuple[int, int, list[tuple[float, float]]]  # id, first frame, one position per frame
@@ -239,7 +240,7 @@ def _write_events(path, frames) -> None:
     depth = np.zeros((4, 4), np.uint16)
     with JsonlSink(path) as sink:
         for i, t, evs in frames:
-            sink.send(Frame(depth, t, i), evs)
+            sink.send(result_of(Frame(depth, t, i), evs))
 
 
 def test_recognize_all_matches_frame_by_frame_and_lifts_at_the_end():

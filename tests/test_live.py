@@ -1,6 +1,6 @@
-"""The live loop without a camera: stillness check and countdown, frame dropping with a slow
-consumer, reconnect after a simulated disconnect, clean stop; run_live end to end on a paced
-synthetic recording."""
+"""The live loop without a camera: stillness check and countdown (the learning gate), frame
+dropping with a slow consumer (the camera stream), reconnect after a simulated disconnect, clean
+stop; run_live end to end on a paced synthetic recording."""
 
 from __future__ import annotations
 
@@ -12,26 +12,17 @@ from collections.abc import Iterator
 import numpy as np
 import pytest
 
+from depthtouch.checks import parse_address
 from depthtouch.config import PipelineConfig
+from depthtouch.driver import Pacer
 from depthtouch.errors import ConfigError, SourceError
-from depthtouch.live import (
-    Delivery,
-    Ended,
-    LatestFrameMailbox,
-    LiveConfig,
-    LiveLoop,
-    LiveStatus,
-    PacedSource,
-    StillnessGate,
-    format_status,
-    motion_fraction,
-    parse_web_address,
-    run_live,
-)
+from depthtouch.live import LiveConfig, LiveLoop, LiveStatus, format_status, run_live
 from depthtouch.sources import write_npz
 from depthtouch.sources.base import SourceBase
+from depthtouch.sources.camera import Delivery, Ended, LatestFrameMailbox
 from depthtouch.sources.realsense import SourceDisconnected
-from depthtouch.types import Frame, TouchEvent
+from depthtouch.surface.gate import LearningGate, StillnessGate, motion_fraction
+from depthtouch.types import Frame, FrameResult, TouchEvent, TouchPoints
 from synth import K_640, Finger, make_recording
 
 H, W = 24, 32
@@ -54,10 +45,12 @@ def scene(n: int, blobs: dict[int, tuple[int, int]] | None = None, seed: int = 0
 
 
 class FakePipeline:
-    """Learns for ``learn_frames`` frames, then reports one touch while the centre is raised."""
+    """Learns for ``learn_frames`` frames (those its learning gate lets through), then reports
+    one touch while the centre is raised."""
 
-    def __init__(self, learn_frames: int = 5, work_s: float = 0.0) -> None:
-        self.learn_frames, self.work_s = learn_frames, work_s
+    def __init__(self, learn_frames: int = 5, work_s: float = 0.0,
+                 gate: LearningGate | None = None) -> None:
+        self.learn_frames, self.work_s, self.gate = learn_frames, work_s, gate
         self.seen: list[Frame] = []
         self.learned_from: list[int] = []
         self.resets = 0
@@ -69,43 +62,57 @@ class FakePipeline:
     def learning(self) -> bool:
         return len(self.learned_from) < self.learn_frames
 
-    @property
-    def learn_progress(self) -> float:
-        return min(1.0, len(self.learned_from) / self.learn_frames)
+    def _result(self, frame: Frame, events: list[TouchEvent], status: str) -> FrameResult:
+        return FrameResult(frame, events, TouchPoints.empty(), status,  # type: ignore[arg-type]
+                           {} if status == "learning" else {"total": 0.1},
+                           min(1.0, len(self.learned_from) / self.learn_frames),
+                           self.gate.note if self.gate is not None and self.learning else "")
 
-    def reset(self) -> None:
-        self.learned_from = []
-        self.resets += 1
-
-    def process(self, frame: Frame) -> list[TouchEvent]:
+    def process(self, frame: Frame) -> FrameResult:
         if self.on_process is not None:
             self.on_process(frame)
         if self.work_s:
             time.sleep(self.work_s)
         self.seen.append(frame)
         if self.learning:
-            self.learned_from.append(frame.index)
-            return []
+            verdict = self.gate.update(frame) if self.gate is not None else "learn"
+            if verdict == "restart":
+                self.learned_from = []
+                self.resets += 1
+            elif verdict == "learn":
+                self.learned_from.append(frame.index)
+            return self._result(frame, [], "learning")
         touching = int(frame.depth[H // 2, W // 2]) < PLANE - 30
         t = frame.timestamp_s
+        events: list[TouchEvent] = []
         if touching and self.active is None:
             self.active, self.next_id = self.next_id, self.next_id + 1
-            return [TouchEvent(frame.index, t, self.active, "down", 16.0, 12.0)]
-        if touching:
-            return [TouchEvent(frame.index, t, self.active or 0, "move", 16.0, 12.0)]
-        if self.active is not None:
-            ev = TouchEvent(frame.index, t, self.active, "up", 16.0, 12.0)
+            events = [TouchEvent(frame.index, t, self.active, "down", 16.0, 12.0)]
+        elif touching:
+            events = [TouchEvent(frame.index, t, self.active or 0, "move", 16.0, 12.0)]
+        elif self.active is not None:
+            events = [TouchEvent(frame.index, t, self.active, "up", 16.0, 12.0)]
             self.active = None
-            return [ev]
-        return []
+        return self._result(frame, events, "ok")
 
-    def finish(self) -> list[TouchEvent]:
+    def finish(self) -> FrameResult | None:
+        if self.learning and self.gate is not None:
+            self.learned_from = []
+            self.gate.reset()
         if self.active is None or not self.seen:
-            return []
+            return None
         last = self.seen[-1]
         ev = TouchEvent(last.index, last.timestamp_s, self.active, "up", 16.0, 12.0)
         self.active = None
-        return [ev]
+        return self._result(last, [ev], "ended")
+
+
+def live_loop(factory, pipe: FakePipeline, sinks, config: LiveConfig | None = None,
+              **kw) -> LiveLoop:  # type: ignore[no-untyped-def]
+    """A LiveLoop whose fake pipeline learns through the loop's learning gate."""
+    config = config or LiveConfig()
+    pipe.gate = LearningGate(config.gate())
+    return LiveLoop(factory, pipe, sinks, config=config, gate=pipe.gate, **kw)
 
 
 class ListSink:
@@ -115,9 +122,9 @@ class ListSink:
         self.flushes = 0
         self.after_send = after_send
 
-    def send(self, frame: Frame, events: list[TouchEvent]) -> None:
-        self.frames.append(frame)
-        self.events += events
+    def send(self, result: FrameResult) -> None:
+        self.frames.append(result.frame)
+        self.events += result.events
         if self.after_send is not None:
             self.after_send()
 
@@ -246,6 +253,11 @@ def test_parse_web_address(text, want):  # type: ignore[no-untyped-def]
         assert parse_web_address(text) == want
 
 
+def parse_web_address(text: str) -> tuple[str, int]:
+    return parse_address(text, what="web address", default_port=8765, default_host="127.0.0.1",
+                         allow_port_zero=True)
+
+
 def test_format_status_is_one_line():
     s = LiveStatus("running", "surface learned", 89.7, 4.25, 100, 3, 2, 1)
     line = format_status(s)
@@ -254,20 +266,20 @@ def test_format_status_is_one_line():
     assert "dropped 3" in line and "touches 2" in line and "reconnects 1" in line
 
 
-def test_paced_source_sleeps_to_the_frame_times():
+def test_pacer_waits_for_the_frame_times():
     now = [100.0]
-    sleeps: list[float] = []
+    waits: list[float] = []
 
-    def sleep(s: float) -> None:
-        sleeps.append(s)
+    def wait(s: float) -> bool:
+        waits.append(s)
         now[0] += s
+        return False
 
-    inner = StepSource(scene(4, t0=5.0, fps=10.0))
-    paced = PacedSource(inner, speed=2.0, clock=lambda: now[0], sleep=sleep)
-    got = [f.index for f in paced.frames()]
-    assert got == [0, 1, 2, 3] and sleeps == pytest.approx([0.05, 0.05, 0.05])
+    pacer = Pacer(2.0, clock=lambda: now[0], wait=wait)
+    got = [f.index for f in scene(4, t0=5.0, fps=10.0) if not pacer.until(f.timestamp_s)]
+    assert got == [0, 1, 2, 3] and waits == pytest.approx([0.05, 0.05, 0.05])
     with pytest.raises(ConfigError, match="speed"):
-        PacedSource(inner, speed=0)
+        Pacer(0)
 
 
 # --- the loop ---------------------------------------------------------------------------------
@@ -277,7 +289,7 @@ def test_countdown_then_learning_then_touches():
     pipe = FakePipeline(learn_frames=5)
     statuses: list[LiveStatus] = []
     ticks = iter(range(10**6))  # a clock that moves 1 s per reading: every frame reports
-    loop = LiveLoop(lambda: src, pipe, [sink], config=LiveConfig(countdown_s=0.2),
+    loop = live_loop(lambda: src, pipe, [sink], config=LiveConfig(countdown_s=0.2),
                     status=statuses.append, clock=lambda: float(next(ticks)))
     res = loop.run()
     assert res.processed == 40 and res.dropped == 0 and res.received == 40
@@ -297,9 +309,9 @@ def test_countdown_then_learning_then_touches():
 def test_a_90_hz_camera_learns_from_30_frames_per_second():
     src, sink = stepped(scene(30, fps=90.0))
     pipe = FakePipeline(learn_frames=5)
-    res = LiveLoop(lambda: src, pipe, [sink], config=LiveConfig(countdown_s=0)).run()
+    res = live_loop(lambda: src, pipe, [sink], config=LiveConfig(countdown_s=0)).run()
     assert pipe.learned_from == [0, 3, 6, 9, 12] and res.processed == 30
-    assert [f.index for f in pipe.seen[5:]] == list(range(13, 30))  # then every frame
+    assert [f.index for f in pipe.seen[13:]] == list(range(13, 30))  # then every frame
 
 
 def test_motion_before_and_during_learning_restarts_it():
@@ -309,7 +321,7 @@ def test_motion_before_and_during_learning_restarts_it():
     src, sink = stepped(frames)
     pipe = FakePipeline(learn_frames=8)
     statuses: list[LiveStatus] = []
-    res = LiveLoop(lambda: src, pipe, [sink], config=LiveConfig(countdown_s=0.2),
+    res = live_loop(lambda: src, pipe, [sink], config=LiveConfig(countdown_s=0.2),
                    status=statuses.append).run()
     assert any("clear the surface" in s.message for s in statuses)
     assert pipe.resets == 1 and res.learn_restarts == 1
@@ -342,7 +354,7 @@ def test_disconnect_reopens_with_backoff_and_keeps_time_increasing():
     pipe.learned_from = [0]  # a saved surface: no learning, no countdown
     statuses: list[LiveStatus] = []
     cfg = LiveConfig(backoff_initial_s=0.01, backoff_max_s=0.02)
-    res = LiveLoop(factory, pipe, [sink], config=cfg, status=statuses.append).run()
+    res = live_loop(factory, pipe, [sink], config=cfg, status=statuses.append).run()
     assert attempts[0] == 4 and res.reconnects == 1
     assert res.received == 27 and res.processed == 27 and all(s.closed for s in opened)
     assert any(s.phase == "reconnecting" for s in statuses)
@@ -363,13 +375,13 @@ def test_no_camera_at_start_raises():
         raise SourceError("no RealSense camera found; connect one")
 
     with pytest.raises(SourceError, match="no RealSense camera"):
-        LiveLoop(factory, FakePipeline(), []).run()
+        live_loop(factory, FakePipeline(), []).run()
 
 
 def test_a_bug_in_the_source_is_raised_not_retried():
     src = StepSource(scene(5), fail_after=2, fail=ZeroDivisionError("bug"))
     with pytest.raises(ZeroDivisionError):
-        LiveLoop(lambda: src, FakePipeline(learn_frames=1), []).run()
+        live_loop(lambda: src, FakePipeline(learn_frames=1), []).run()
     assert src.closed
 
 
@@ -397,7 +409,7 @@ def test_slow_consumer_drops_stale_frames_instead_of_queueing():
     pipe = FakePipeline(learn_frames=2, work_s=0.03)  # 3 frame intervals per frame
     staleness: list[int] = []
     pipe.on_process = lambda f: staleness.append(src.produced - 1 - f.index)
-    res = LiveLoop(lambda: src, pipe, [], config=LiveConfig(countdown_s=0.0)).run()
+    res = live_loop(lambda: src, pipe, [], config=LiveConfig(countdown_s=0.0)).run()
     assert res.received == 60 and res.dropped > 0
     assert res.processed + res.dropped == res.received
     indices = [f.index for f in pipe.seen]
@@ -422,7 +434,7 @@ def test_stop_event_ends_the_run_and_lifts_touches():
     src = StepSource(frames, step)
     pipe = FakePipeline(learn_frames=1)
     pipe.learned_from = [0]
-    res = LiveLoop(lambda: src, pipe, [sink], config=LiveConfig(countdown_s=0)).run(
+    res = live_loop(lambda: src, pipe, [sink], config=LiveConfig(countdown_s=0)).run(
         stop_event=stop)
     assert res.processed == 10 and src.closed
     assert [e.state for e in sink.events][-1] == "up" and sink.flushes >= 1
@@ -430,7 +442,7 @@ def test_stop_event_ends_the_run_and_lifts_touches():
 
 def test_max_frames():
     src, sink = stepped(scene(50))
-    res = LiveLoop(lambda: src, FakePipeline(learn_frames=1), [sink],
+    res = live_loop(lambda: src, FakePipeline(learn_frames=1), [sink],
                    config=LiveConfig(countdown_s=0)).run(max_frames=7)
     assert res.processed == 7 and src.closed
 
@@ -491,6 +503,16 @@ def _named(src: StepSource) -> StepSource:
 
 def test_run_live_with_the_web_page(tmp_path):  # type: ignore[no-untyped-def]
     pytest.importorskip("aiohttp")
-    res = run_live(lambda: PacedSource(StepSource(scene(20))), serve="127.0.0.1:0",
+    res = run_live(lambda: PacedList(scene(20)), serve="127.0.0.1:0",
                    show_status=False, live_config=LiveConfig(countdown_s=0))
     assert res.received == 20 and res.processed + res.dropped == 20 and res.processed > 10
+
+
+class PacedList(StepSource):
+    """Frames at their own pace (30 fps), as a camera delivers them."""
+
+    def frames(self) -> Iterator[Frame]:
+        pacer = Pacer(1.0)
+        for f in super().frames():
+            pacer.until(f.timestamp_s)
+            yield f

@@ -51,8 +51,9 @@ def run_pipeline(path, config=None):
     frames = []
     with NpzSource(path) as src:
         for f in src.frames():
-            frames.append((f.index, p.process(f)))
-    frames.append((frames[-1][0], p.finish()))
+            frames.append((f.index, p.process(f).events))
+    end = p.finish()
+    frames.append((frames[-1][0], end.events if end is not None else []))
     return frames
 
 
@@ -125,7 +126,7 @@ def test_bad_frames_are_skipped_not_raised():
     p = Pipeline()
     for i in range(d.shape[0]):
         p.process(Frame(d[i], ts[i], i, 0.001, K_640))
-    assert p.process(Frame(np.zeros((10, 10), np.uint16), 9.0, 99, 0.001, K_640)) == []
-    assert p.process(Frame(d[-1].astype(np.float32), 9.1, 100, 0.001, K_640)) == []
+    assert p.process(Frame(np.zeros((10, 10), np.uint16), 9.0, 99, 0.001, K_640)).status == "skipped"
+    assert p.process(Frame(d[-1].astype(np.float32), 9.1, 100, 0.001, K_640)).status == "skipped"
     assert p.stats.skipped_frames == 2 and set(p.stats.skip_reasons) == {"size", "dtype"}
-    assert p.process(Frame(d[-1], 9.2, 101, 0.001, K_640))  # and it goes on
+    assert p.process(Frame(d[-1], 9.2, 101, 0.001, K_640)).events  # and it goes on

@@ -74,9 +74,10 @@ def soak(n_frames: int, tmp_path: Path) -> dict:
         for i in range(n_frames):
             d = empty[i].astype(np.uint16) if i < 45 else cycle[(i - 45) % len(cycle)]
             f = Frame(d, i / FPS, i, 0.001, K)
-            events = p.process(f)
-            jsonl.send(f, events)
-            tuio.send(f, events)
+            result = p.process(f)
+            events = result.events
+            jsonl.send(result)
+            tuio.send(result)
             n_events += len(events)
             for e in events:
                 if e.state == "down":
@@ -90,8 +91,10 @@ def soak(n_frames: int, tmp_path: Path) -> dict:
                     assert e.id in open_ids
             if i % max(1, n_frames // 50) == 0:
                 rss.append(_rss_kb())
-        tail = p.finish()
-        jsonl.send(f, tail)
+        end = p.finish()
+        tail = end.events if end is not None else []
+        if end is not None:
+            jsonl.send(end)
         n_events += len(tail)
         ups += sum(e.state == "up" for e in tail)
         tuio_errors = tuio.errors

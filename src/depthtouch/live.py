@@ -214,7 +214,7 @@ class LiveLoop:
         self.config = config or LiveConfig()
         self.pipeline, self.sinks, self.clock, self.gate = pipeline, list(sinks), clock, gate
         self.stop = threading.Event()
-        pacer = Pacer(1.0, clock=clock, wait=self.stop.wait) if pace else None
+        pacer = Pacer(1.0, clock=clock, wait=lambda s: self.stop.wait(s)) if pace else None
         self.stream = CameraStream(
             source_factory, stop=self.stop, pace=pacer.until if pacer else None,
             backoff_initial_s=self.config.backoff_initial_s,
@@ -230,14 +230,8 @@ class LiveLoop:
         """Run until the source ends, ``max_frames`` frames were processed or ``stop_event`` is
         set; returns the counts. Touches still down get their ``up`` at the end. Ctrl-C ends it
         the same way (``interrupted``)."""
-        watcher = None
-        if stop_event is not None:
-            def relay() -> None:
-                stop_event.wait()
-                self.stop.set()
-
-            watcher = threading.Thread(target=relay, daemon=True)
-            watcher.start()
+        if stop_event is not None:  # the caller's event ends the stream and the loop
+            self.stop = self.stream.stop = stop_event
         try:
             drive(self.stream, self.pipeline, self.sinks, stop=self.stop, max_frames=max_frames,
                   on_result=self.board, lenient=True,
@@ -247,8 +241,6 @@ class LiveLoop:
             self.result.interrupted = True
         finally:
             self.stop.set()
-            if stop_event is not None:
-                stop_event.set()  # releases the watcher
         s, c, r = self.stats, self.stream.counts, self.result
         r.processed, r.events, r.sink_errors = s.frames, s.events, s.sink_errors
         r.received, r.dropped, r.reconnects = c.received, self.stream.dropped, c.reconnects

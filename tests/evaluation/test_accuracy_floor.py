@@ -180,8 +180,8 @@ def test_cli_eval_of_a_recording_file_matches_the_in_memory_run(
 
     from depthtouch.cli import main
     from depthtouch.evaluation.metrics import truth_from_dict
-    from depthtouch.evaluation.suite import _run, _sim_frames
-    from depthtouch.sources import write_npz
+    from depthtouch.evaluation.suite import run_source
+    from depthtouch.sources import ArraySource, write_npz
 
     rec = sim.render_scene("taps", camera="kinect-v2", distance_m=1.0, seed=7)
     n = 90  # the empty surface and the first taps; keeps the compressed file quick to write
@@ -194,7 +194,7 @@ def test_cli_eval_of_a_recording_file_matches_the_in_memory_run(
                  "--json"]) == 0
     got = json.loads(capsys.readouterr().out)["r.npz"]
     short = type(rec)(rec.depth[:n], rec.timestamps_s[:n], rec.depth_scale_m, rec.K, doc)
-    events, _ = _run(_sim_frames(short), None)
+    events, _ = run_source(ArraySource.of_recording(short), None)
     want = summarize([evaluate(truth, events)]).to_dict()
     for k in ("contacts", "contact_recall", "frame_recall", "false_touches", "error_median_mm",
               "id_switches", "down_latency_median_frames"):

@@ -20,6 +20,7 @@ from depthtouch.evaluation.metrics import (
     truth_from_dict,
 )
 from depthtouch.types import TouchEvent
+from synth import result_of
 
 FX = 500.0
 CX, CY = 320.0, 240.0
@@ -311,7 +312,8 @@ def test_cli_eval_events_json(tmp_path: Path, capsys: pytest.CaptureFixture[str]
     truth.write_text(json.dumps(doc(30, {f: [contact(1, 300, 200)] for f in range(5, 20)})))
     events = tmp_path / "e.jsonl"
     with JsonlSink(events) as sink:
-        sink.send(Frame(np.zeros((8, 8), np.uint16), 0.0, 0), track(4, range(6, 20), (301.5, 200)))
+        frame = Frame(np.zeros((8, 8), np.uint16), 0.0, 0)
+        sink.send(result_of(frame, track(4, range(6, 20), (301.5, 200))))
     assert main(["eval", "--events", str(events), "--truth", str(truth), "--json"]) == 0
     out = json.loads(capsys.readouterr().out)
     m = out["e.jsonl"]

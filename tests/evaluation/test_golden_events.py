@@ -13,7 +13,6 @@ from __future__ import annotations
 import json
 
 import pytest
-
 from golden_events import GOLDEN, case_digest, suite_cases
 
 GOLDEN_DIGESTS = json.loads(GOLDEN.read_text())

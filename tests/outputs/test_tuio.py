@@ -17,7 +17,7 @@ from pythonosc.osc_bundle import OscBundle
 from pythonosc.osc_message import OscMessage
 from pythonosc.parsing import osc_types
 
-from depthtouch.calibration import Calibration
+from depthtouch.calibration import Calibration, apply_calibration
 from depthtouch.errors import ConfigError, OutputError
 from depthtouch.outputs.base import EventSink
 from depthtouch.outputs.tuio import (
@@ -28,6 +28,7 @@ from depthtouch.outputs.tuio import (
     parse_hostport,
 )
 from depthtouch.types import Frame, TouchEvent, TouchState
+from synth import result_of
 
 GOLDEN = Path(__file__).parent / "golden"
 REGEN = os.environ.get("DEPTHTOUCH_REGEN_GOLDEN") == "1"
@@ -265,7 +266,7 @@ def test_sink_stream_is_valid_tuio(receiver):
     with TuioSink("127.0.0.1", port, source_name="dt") as sink:
         assert isinstance(sink, EventSink)
         for frame, evs in rec:
-            sink.send(frame, evs)
+            sink.send(result_of(frame, evs))
         sent = sink.packets_sent
         assert sink.errors == 0
     packets = drain(receiver, sent + 1)  # + the empty alive sent by close()
@@ -291,28 +292,31 @@ def test_sink_stream_is_valid_tuio(receiver):
     assert parts[-1]["alive"] == []
 
 
-def test_sink_uses_calibration_screen_coordinates(receiver):
+def test_sink_uses_the_events_screen_coordinates(receiver):
+    """With a calibrated screen, TUIO normalises the sx, sy the pipeline put on the events (it
+    never maps them again)."""
     port = receiver.getsockname()[1]
     H = np.array([[3.0, 0.0, 0.0], [0.0, 2.25, 0.0], [0.0, 0.0, 1.0]])
     cal = Calibration(H, (1920, 1080), 0.0)
     frame = Frame(DEPTH, 0.0, 0)
     evs = [TouchEvent(0, 0.0, 4, "down", 320.0, 240.0),
-           TouchEvent(0, 0.0, 5, "down", 10.0, 10.0, {"sx": 1920.0 * 0.75, "sy": 1080 * 0.25}),
+           TouchEvent(0, 0.0, 5, "down", 10.0, 10.0),
            TouchEvent(0, 0.0, 6, "down", 900.0, -50.0)]  # off screen: clipped
-    with TuioSink("127.0.0.1", port, calibration=cal) as sink:
-        sink.send(frame, evs)
+    evs = apply_calibration(evs, cal)
+    with TuioSink("127.0.0.1", port, screen_wh=cal.screen_wh) as sink:
+        sink.send(result_of(frame, evs))
     (p, _) = [validate(d) for d in drain(receiver, 2)]
     assert p["sets"][4][:2] == pytest.approx((0.5, 0.5))
-    assert p["sets"][5][:2] == pytest.approx((0.75, 0.25))  # sx, sy from the event win
+    assert p["sets"][5][:2] == pytest.approx((30 / 1920, 22.5 / 1080))
     assert p["sets"][6][:2] == (1.0, 0.0)
 
 
 def test_repeated_timestamp_does_not_divide_by_zero(receiver):
     port = receiver.getsockname()[1]
     with TuioSink("127.0.0.1", port) as sink:
-        sink.send(Frame(DEPTH, 1.0, 0), [TouchEvent(0, 1.0, 1, "down", 10.0, 10.0)])
-        sink.send(Frame(DEPTH, 1.1, 1), [TouchEvent(1, 1.1, 1, "move", 20.0, 10.0)])
-        sink.send(Frame(DEPTH, 1.1, 2), [TouchEvent(2, 1.1, 1, "move", 30.0, 10.0)])
+        sink.send(result_of(Frame(DEPTH, 1.0, 0), [TouchEvent(0, 1.0, 1, "down", 10.0, 10.0)]))
+        sink.send(result_of(Frame(DEPTH, 1.1, 1), [TouchEvent(1, 1.1, 1, "move", 20.0, 10.0)]))
+        sink.send(result_of(Frame(DEPTH, 1.1, 2), [TouchEvent(2, 1.1, 1, "move", 30.0, 10.0)]))
     parts = validate_stream(drain(receiver, 4))
     vx2, vx3 = parts[1]["sets"][1][2], parts[2]["sets"][1][2]
     assert vx2 == pytest.approx(10 / 640 / 0.1, rel=1e-4) and vx3 == vx2
@@ -349,7 +353,7 @@ def test_third_party_client_sees_add_update_remove():
     try:
         with TuioSink("127.0.0.1", port) as sink:
             for frame, evs in recording():
-                sink.send(frame, evs)
+                sink.send(result_of(frame, evs))
         pause = threading.Event()
         for _ in range(250):  # until the client thread has handled the last removal (<= 5 s)
             if sum(1 for k, _ in seen if k == "remove") >= 2:
@@ -381,7 +385,7 @@ def test_unreachable_port_is_counted_and_warned_once(caplog):
     caplog.set_level(logging.WARNING, logger="depthtouch.outputs.tuio")
     sink = TuioSink("127.0.0.1", _free_port())  # nobody listens: ICMP port unreachable
     for frame, evs in recording(70):
-        sink.send(frame, evs)
+        sink.send(result_of(frame, evs))
     sink.close()
     assert sink.errors >= 1 and "failed" in (sink.last_error or "")
     assert sink.packets_sent >= 1
@@ -413,7 +417,7 @@ def test_send_errors_never_raise(receiver, caplog, exc):
     sink._sock = _FailingSocket(exc)  # type: ignore[assignment]
     rec = recording(40)
     for frame, evs in rec:
-        sink.send(frame, evs)
+        sink.send(result_of(frame, evs))
     assert sink.errors == sink._sock.calls >= 20  # type: ignore[union-attr]
     assert sink.packets_sent == 0
     sink.close()
@@ -424,11 +428,11 @@ def test_send_errors_never_raise(receiver, caplog, exc):
 def test_unencodable_frame_is_counted_not_raised(receiver):
     sink = TuioSink("127.0.0.1", receiver.getsockname()[1])
     evs = [TouchEvent(0, 0.0, i, "down", 10.0, 10.0) for i in range(400)]
-    sink.send(Frame(DEPTH, 0.0, 0), evs)  # 400 alive ids do not fit one packet
+    sink.send(result_of(Frame(DEPTH, 0.0, 0), evs))  # 400 alive ids do not fit one packet
     assert sink.errors == 1 and "encode" in (sink.last_error or "")
     sink.close()
     sink.close()  # twice is fine
-    sink.send(Frame(DEPTH, 1.0, 1), [])  # after close: a no-op
+    sink.send(result_of(Frame(DEPTH, 1.0, 1), []))  # after close: a no-op
 
 
 @pytest.mark.parametrize(

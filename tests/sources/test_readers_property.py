@@ -40,6 +40,7 @@ from depthtouch.outputs.jsonl import JsonlSink, read_events
 from depthtouch.sources import NpzSource, PngFolderSource, write_npz
 from depthtouch.surface.model import SURFACE_FORMAT, SurfaceModel, load_surface
 from depthtouch.types import Frame, TouchEvent
+from synth import result_of
 
 T = TypeVar("T")
 
@@ -535,7 +536,7 @@ def test_events_round_trip(events: list[TouchEvent]) -> None:
     frame = Frame(np.zeros((2, 2), np.uint16), 0.0, 0)
     with _folder() as d:
         with JsonlSink(d / "ev.jsonl") as sink:
-            sink.send(frame, events)
+            sink.send(result_of(frame, events))
         back = list(read_events(d / "ev.jsonl"))
     assert [e.to_dict() for e in back] == [e.to_dict() for e in events]
 

@@ -129,8 +129,9 @@ def _events(source):  # type: ignore[no-untyped-def]
     out = []
     with source:
         for f in source.frames():
-            out += [e.to_dict() for e in p.process(f)]
-    return out + [e.to_dict() for e in p.finish()]
+            out += [e.to_dict() for e in p.process(f).events]
+    end = p.finish()
+    return out + [e.to_dict() for e in (end.events if end is not None else [])]
 
 
 @needs_rs

@@ -25,7 +25,7 @@ def frames(script, *, seed=0, noise=1.5, plane=None):
 
 def run(script, config=None, **kw):
     p = Pipeline(config, surface_frames=45)
-    log = [(f, p.process(f)) for f in frames(script, **kw)]
+    log = [(f, p.process(f).events) for f in frames(script, **kw)]
     return p, log
 
 
@@ -40,9 +40,9 @@ def test_object_put_down_is_absorbed_and_removal_restores():
     with_box = box(empty, 250, 200, 350, 260, 60.0)  # a 60 mm tall box
     script = [lambda k: with_box] * 90 + [lambda k: empty] * 90  # 3 s on, 3 s off
     p, log = run(script)
-    assert p._bounds is not None
+    assert not p.learning
     # after the box stood 3 s it was surface; after 3 s without it the table is back
-    s = p._bounds.surface_mm
+    s = p.surface.bounds.surface_mm
     assert abs(float(s[230, 300]) - 1000.0) < 3.0
     assert not any(evs for _, evs in log)
 
@@ -54,8 +54,8 @@ def test_object_becomes_surface_within_two_seconds():
     t_absorbed = None
     for f in frames([lambda k: with_box] * 120):
         p.process(f)
-        if (p._bounds is not None and f.index >= 45 and t_absorbed is None
-                and np.median(p._bounds.surface_mm[205:255, 255:345]) < 950):
+        if (not p.learning and f.index >= 45 and t_absorbed is None
+                and np.median(p.surface.bounds.surface_mm[205:255, 255:345]) < 950):
             t_absorbed = (f.index - 45) / FPS
     assert t_absorbed is not None and t_absorbed <= 2.0
 
@@ -79,8 +79,8 @@ def test_slow_drift_is_absorbed():
     plane = lambda i: 1000.0 - min(max(0, i - 45), n_drift) * 3.0 / n_drift  # noqa: E731
     empty = np.zeros((480, 640), np.float32)
     p, log = run([lambda k: empty] * int(20 * FPS), plane=plane)
-    assert p._bounds is not None and p.stats.relearns == 0
-    assert abs(float(np.median(p._bounds.surface_mm)) - 997.0) < 1.0
+    assert not p.learning and p.stats.relearns == 0
+    assert abs(float(np.median(p.surface.bounds.surface_mm)) - 997.0) < 1.0
     assert not any(evs for _, evs in log)
 
 
@@ -92,7 +92,7 @@ def test_camera_bump_relearns_the_surface():
     p, log = run(script)
     assert p.stats.relearns == 1
     assert p.surface is not None
-    assert abs(float(np.median(p._bounds.surface_mm)) - 1040.0) < 3.0
+    assert abs(float(np.median(p.surface.bounds.surface_mm)) - 1040.0) < 3.0
     assert not any(evs for _, evs in log)
 
 
@@ -102,7 +102,7 @@ def test_adaptation_can_be_switched_off(enabled):
     with_box = box(empty, 250, 200, 350, 260, 60.0)
     cfg = PipelineConfig().replace(adapt={"enabled": enabled})
     p, _ = run([lambda k: with_box] * 90, config=cfg)
-    assert (float(p._bounds.surface_mm[230, 300]) < 950) is enabled
+    assert (float(p.surface.bounds.surface_mm[230, 300]) < 950) is enabled
 
 
 @pytest.mark.parametrize("h, w", [(480, 640), (424, 512), (250, 333), (7, 5), (101, 99)])
@@ -158,7 +158,7 @@ def test_exclusions_match_the_opencv_version():
     compared = 0
     for i in range(rec.depth.shape[0]):
         p.process(Frame(rec.depth[i], float(rec.timestamps_s[i]), i, rec.depth_scale_m, rec.K))
-        a = p._adapter
+        a = p.surface.adapter
         if a is None or i % 4:
             continue
         d = cv2.medianBlur(rec.depth[i], 3)

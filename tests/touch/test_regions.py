@@ -2,8 +2,8 @@ import numpy as np
 import pytest
 
 from depthtouch.config import RegionConfig
-from depthtouch.surface.model import learn_surface
 from depthtouch.surface.bounds import band_bounds, height_mm
+from depthtouch.surface.model import learn_surface
 from depthtouch.touch.regions import band_regions
 from reference_touchpoints import band_masks
 from synth import K_640, Finger, make_recording, render_heights
@@ -114,8 +114,8 @@ def test_regions_of_runs_match_opencv_contours(seed):
     import cv2
 
     import reference_touchpoints as ref
-    from depthtouch.touch.regions import Regions, _any_close
     from depthtouch.runs import dilate_runs, parts_of_runs
+    from depthtouch.touch.regions import Regions, _any_close
 
     rng = np.random.default_rng(seed)
     n_close = 0

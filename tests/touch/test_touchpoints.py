@@ -2,10 +2,10 @@ import numpy as np
 import pytest
 
 from depthtouch.config import RegionConfig, TouchPointConfig
+from depthtouch.surface.bounds import band_bounds
 from depthtouch.surface.model import learn_surface
 from depthtouch.touch.handmap import hand_map
 from depthtouch.touch.points import find_touch_points
-from depthtouch.surface.bounds import band_bounds
 from depthtouch.touch.regions import band_regions
 from reference_touchpoints import band_masks
 from synth import K_640, Finger, make_recording, render_heights

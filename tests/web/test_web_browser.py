@@ -10,16 +10,17 @@ from __future__ import annotations
 import math
 from collections.abc import Iterator
 from pathlib import Path
+from types import SimpleNamespace
 from typing import Any
 
 import numpy as np
 import pytest
 
-from depthtouch.calibration import default_targets, load_calibration
+from depthtouch.calibration import apply_calibration, default_targets, load_calibration
 from depthtouch.pipeline import Pipeline
 from depthtouch.sources import open_source, write_npz
 from depthtouch.types import TouchEvent
-from depthtouch.web.serve import SourceLoop
+from depthtouch.web.serve import SourceLoop, page_sinks
 from depthtouch.web.server import WebServer
 
 CHROMIUM = Path("/usr/bin/chromium")
@@ -92,6 +93,7 @@ class Feed:
         t = self.i / 30.0
         evs = [TouchEvent(self.i, t, tid, st, x, y, dict(extra))  # type: ignore[arg-type]
                for tid, st, x, y in touches]
+        evs = apply_calibration(evs, self.server.calibration)  # as the pipeline does
         self.server.inject(evs, frame_index=self.i, t_s=t)
         self.i += 1
 
@@ -155,7 +157,8 @@ def test_page_shows_touches_of_a_replay(
     page: Any, server: WebServer, tmp_path: Path
 ) -> None:
     rec = finger_recording(tmp_path / "finger.npz")
-    runner = SourceLoop(lambda: open_source(rec), Pipeline(surface_frames=12), server,
+    web = SimpleNamespace(server=server, sinks=page_sinks(server))
+    runner = SourceLoop(lambda: open_source(rec), Pipeline(surface_frames=12), web,
                         realtime=True, loop=False).start()
     try:
         assert runner.join(20.0)

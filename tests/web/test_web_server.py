@@ -28,7 +28,7 @@ from depthtouch.outputs.websocket import (
 )
 from depthtouch.sources import write_npz
 from depthtouch.sources.base import SourceBase
-from depthtouch.types import Frame, TouchEvent, TouchState
+from depthtouch.types import Frame, FrameResult, TouchEvent, TouchPoints, TouchState
 from depthtouch.web.latency import measure_ws_latency, stalled_client
 from depthtouch.web.serve import SourceLoop
 from depthtouch.web.server import (
@@ -36,6 +36,7 @@ from depthtouch.web.server import (
     colorize_height,
     parse_calibration_request,
 )
+from synth import result_of
 
 
 def ev(frame: int, id_: int, state: str, x: float, y: float, **extra: Any) -> TouchEvent:
@@ -126,11 +127,6 @@ def test_broadcaster_post_without_loop_is_a_noop() -> None:
 
 
 # --- sink status and calibration ---------------------------------------------------------------
-class FakeTiming:
-    last_timing_ms = {"total": 2.5}
-    learning = True
-
-
 class Doubler:
     screen_wh = (200, 100)
     reprojection_error_px = 0.5
@@ -140,15 +136,25 @@ class Doubler:
 
 
 def test_sink_status_and_screen_coordinates() -> None:
-    sink = WebSocketSink(Broadcaster(), timing=FakeTiming(), calibration=Doubler())
+    """The status line comes from each frame's result; sx, sy are the pipeline's, passed on."""
+    sink = WebSocketSink(Broadcaster())
+    texts: list[str] = []
+    sink.broadcaster.post = lambda kind, text, t0=None: texts.append(text)  # type: ignore
     for i in range(10):
-        text = sink.publish(i, i / 20.0, [ev(i, 1, "down" if i == 0 else "move", 5.0, 6.0)])
-    msg = json.loads(text)
-    assert msg["status"] == {"fps": 20.0, "ms_per_frame": 2.5, "touches": 1, "learning": True}
+        frame = Frame(np.zeros((4, 4), np.uint16), i / 20.0, i)
+        e = ev(i, 1, "down" if i == 0 else "move", 5.0, 6.0, sx=10.0, sy=12.0)
+        result = FrameResult(frame, [e], TouchPoints.empty(), "ok", {"total": 2.5})
+        sink.send(result)
+    msg = json.loads(texts[-1])
+    assert msg["status"] == {"fps": 20.0, "ms_per_frame": 2.5, "touches": 1, "learning": False}
     assert msg["touches"][0]["sx"] == 10.0 and msg["touches"][0]["sy"] == 12.0
-    # an event that already has sx keeps it; an up ends the touch
-    msg = json.loads(sink.publish(10, 0.5, [ev(10, 1, "up", 5.0, 6.0, sx=1.0, sy=2.0)]))
+    # an up ends the touch; a learning frame says so
+    sink.send(FrameResult(Frame(np.zeros((4, 4), np.uint16), 0.5, 10),
+                          [ev(10, 1, "up", 5.0, 6.0, sx=1.0, sy=2.0)], TouchPoints.empty(),
+                          "learning"))
+    msg = json.loads(texts[-1])
     assert msg["touches"][0]["sx"] == 1.0 and msg["status"]["touches"] == 0
+    assert msg["status"]["learning"] is True and msg["status"]["ms_per_frame"] is None
     # time going back (looped recording) restarts the fps window
     msg = json.loads(sink.publish(0, 0.0, []))
     assert msg["status"]["fps"] is None
@@ -320,7 +326,7 @@ def test_websocket_stream_hello_frames_and_height(server: WebServer) -> None:
 
     def publish() -> None:
         assert wait_until(lambda: server.broadcaster.n_clients == 1)
-        server.sink.send(frame, events)
+        server.sink.send(result_of(frame, events))
         assert server.publish_height(frame, height)
         assert not server.publish_height(frame, height)  # rate-limited: same time
         server.inject([ev(6, 1, "up", 11.0, 21.0)])
@@ -452,15 +458,18 @@ JSON_CT = {"Content-Type": "application/json"}
 def test_calibration_endpoint(
     server: WebServer, body: str, headers: dict[str, str], status: int, match: str | None
 ) -> None:
+    handed: list[object] = []
+    server.on_calibration = handed.append
     code, reply = post_json(server.port, body.encode(), headers)
     assert code == status
     if status == 200:
         assert reply["ok"] is True and reply["error_px"] < 1e-6
         assert Path(reply["path"]).is_file()
         assert server.calibration is not None
-        text = server.inject([ev(1, 1, "down", 10.0, 20.0)])
-        t = json.loads(text)["touches"][0]
-        assert (t["sx"], t["sy"]) == pytest.approx((20.0, 40.0), abs=1e-2)
+        # the fit goes to whoever maps the events (the pipeline): here, a list
+        assert handed == [server.calibration]
+        sxy = server.calibration.to_screen(np.array([[10.0, 20.0]]))
+        assert sxy[0] == pytest.approx((20.0, 40.0), abs=1e-2)
     else:
         assert reply["ok"] is False and "\n" not in reply["error"]
         if match is not None:
@@ -511,23 +520,26 @@ class FakePipeline:
 
     def __init__(self) -> None:
         self.resets = 0
-        self.last_timing_ms = {"total": 1.0}
-        self.learning = False
         self.n = 0
 
-    def process(self, frame: Frame) -> list[TouchEvent]:
+    def process(self, frame: Frame) -> FrameResult:
         self.n += 1
         state: TouchState = "down" if frame.index == 0 else "move"
-        return [TouchEvent(frame.index, frame.timestamp_s, 1, state, float(frame.index), 1.0)]
+        e = TouchEvent(frame.index, frame.timestamp_s, 1, state, float(frame.index), 1.0)
+        return FrameResult(frame, [e], TouchPoints.empty(), "ok", {"total": 1.0})
 
-    def finish(self) -> list[TouchEvent]:
-        return []
-
-    def height_map_mm(self, frame: Frame) -> np.ndarray:
-        return np.zeros(frame.depth.shape, np.float32)
+    def finish(self) -> FrameResult | None:
+        return None
 
     def reset(self) -> None:
         self.resets += 1
+
+
+def page(server: WebServer) -> Any:
+    """What SourceLoop needs of a WebPage: the server and the sinks."""
+    from types import SimpleNamespace
+
+    return SimpleNamespace(server=server, sinks=[server.sink])
 
 
 def frames(n: int) -> list[Frame]:
@@ -549,7 +561,7 @@ def test_source_loop_passes(
         return sources[-1]
 
     with WebServer("127.0.0.1", 0) as server:
-        runner = SourceLoop(open_one, pipe, server, realtime=False, loop=loop,
+        runner = SourceLoop(open_one, pipe, page(server), realtime=False, loop=loop,
                             max_passes=max_passes, reuse_source=reuse).start()
         assert runner.join(10.0)
     assert runner.stats.passes == passes and runner.stats.frames == 5 * passes
@@ -562,7 +574,7 @@ def test_source_loop_realtime_and_stop() -> None:
     pipe = FakePipeline()
     with WebServer("127.0.0.1", 0) as server:
         slow = [Frame(np.zeros((4, 4), np.uint16), 10.0 * i, i) for i in range(3)]
-        runner = SourceLoop(lambda: ListSource(slow), pipe, server, realtime=True).start()
+        runner = SourceLoop(lambda: ListSource(slow), pipe, page(server), realtime=True).start()
         assert wait_until(lambda: pipe.n == 1)
         runner.stop()  # interrupts the wait for the frame 10 s later
         assert runner.join(5.0)
@@ -571,7 +583,7 @@ def test_source_loop_realtime_and_stop() -> None:
 
 def test_source_loop_empty_source_is_an_error() -> None:
     with WebServer("127.0.0.1", 0) as server:
-        runner = SourceLoop(lambda: ListSource([]), FakePipeline(), server).start()
+        runner = SourceLoop(lambda: ListSource([]), FakePipeline(), page(server)).start()
         with pytest.raises(OutputError, match="gave no frames"):
             runner.join(5.0)
 

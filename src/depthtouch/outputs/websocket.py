@@ -328,7 +328,10 @@ class WebSocketSink(SinkBase):
         t0 = time.perf_counter()
         frame, events = result.frame, result.events
         total = result.timing_ms.get("total")
-        self._ms = round(float(total), 3) if total is not None else None
+        if total is not None:
+            self._ms = round(float(total), 3)
+        elif result.learning:
+            self._ms = None  # no touch path yet (a frame ending touches keeps the last figure)
         self._learning = result.learning
         wh = frame.resolution_wh
         if wh != self._resolution_wh:

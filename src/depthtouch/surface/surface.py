@@ -94,6 +94,12 @@ class Surface:
         return self._bounds.mm_per_px if self._bounds is not None else None
 
     @property
+    def adapter(self) -> SurfaceAdapter | None:
+        """The adapter keeping the surface current (None while learning or when switched off);
+        read it, never change it."""
+        return self._adapter
+
+    @property
     def absorbed_px(self) -> int:
         """Pixels that became surface since it was learned (objects put down or taken away)."""
         return self._adapter.absorbed_px if self._adapter is not None else 0

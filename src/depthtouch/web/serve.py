@@ -40,24 +40,31 @@ class _Heights:
         """Nothing to release: the page's owner stops the server."""
 
 
+def page_sinks(server: WebServer) -> list[Sink]:
+    """The sinks that feed a server's page: the WebSocket stream and the height maps."""
+    return [server.sink, _Heights(server)]
+
+
 class WebPage:
     """The web page of a running sensor: a context manager that starts and stops the server.
 
-    address: "HOST:PORT" (see :func:`depthtouch.checks.parse_address`; port 0 = any free one).
+    address: "HOST:PORT" (see :func:`depthtouch.checks.parse_address`; port 0 = any free one)
+        or (host, port).
     pipeline: gets the page's calibration (``set_calibration``); its own calibration is shown.
     server_options: more keywords for :class:`WebServer` (calibration_out, allowed_origins...).
     """
 
-    def __init__(self, address: str, pipeline: Any, *, source_name: str = "",
+    def __init__(self, address: str | tuple[str, int], pipeline: Any, *, source_name: str = "",
                  **server_options: Any) -> None:
         from ..checks import parse_address
 
-        host, port = parse_address(address, what="web address", default_port=8765,
-                                   default_host="127.0.0.1", allow_port_zero=True)
+        host, port = address if isinstance(address, tuple) else parse_address(
+            address, what="web address", default_port=8765, default_host="127.0.0.1",
+            allow_port_zero=True)
         self.server = WebServer(host, port, calibration=pipeline.calibration,
                                 source_name=source_name, **server_options)
         self.server.on_calibration = pipeline.set_calibration
-        self.sinks: list[Sink] = [self.server.sink, _Heights(self.server)]
+        self.sinks = page_sinks(self.server)
 
     @property
     def url(self) -> str:
@@ -214,8 +221,7 @@ def run_serve(
 
     try:
         pipeline = Pipeline(config, calibration=calibration, surface_frames=surface_frames)
-        page = WebPage(f"[{host}]:{port}" if ":" in host else f"{host}:{port}", pipeline,
-                       source_name=name, calibration_out=out, allowed_origins=allowed_origins)
+        page = WebPage((host, port), pipeline, source_name=name, calibration_out=out, allowed_origins=allowed_origins)
         page.__enter__()
     except BaseException:
         opened[0].close()
