@@ -149,7 +149,7 @@ def test_write_npz_replaces_an_existing_file_atomically(tmp_path: Path) -> None:
     write_npz(tmp_path / "r.npz", a, ta)
     write_npz(tmp_path / "r.npz", b, tb)
     src = NpzSource(tmp_path / "r.npz")
-    np.testing.assert_array_equal(src.depth, b)
+    np.testing.assert_array_equal(src.read_all(), b)
     assert leftovers(tmp_path) == []
 
 

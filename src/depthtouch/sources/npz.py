@@ -2,11 +2,12 @@
 
 from __future__ import annotations
 
+import mmap
 import os
-import tempfile
 import zipfile
 import zlib
 from collections.abc import Iterator
+from dataclasses import dataclass
 from pathlib import Path
 from typing import IO, Any
 
@@ -14,6 +15,7 @@ import numpy as np
 from numpy.lib.npyio import NpzFile
 
 from ..errors import DepthTouchError, SourceError
+from ..files import atomic_path
 from ..types import Frame
 from .base import (
     SourceBase,
@@ -25,7 +27,15 @@ from .base import (
 
 
 class NpzSource(SourceBase):
-    """Frames of an `.npz` recording, validated at open; the depth array is memory-loaded once."""
+    """Frames of an `.npz` recording, validated at open and read when they are needed.
+
+    The small arrays (timestamps, depth scale, K) are read at open; the depth array is not:
+    a stored (uncompressed) member is memory-mapped and each frame is a view of the file (or a
+    copy when the member's data is not 2-byte aligned), the pages already played are released;
+    a compressed member is decompressed frame by frame as the replay goes. Memory stays flat
+    whatever the length of the recording. ``depthtouch record`` writes stored members, which
+    replay fastest (no decompression, no checksum pass).
+    """
 
     def __init__(self, path: str | Path) -> None:
         p = Path(path)
@@ -40,10 +50,10 @@ class NpzSource(SourceBase):
                         f"{p}: not a depth recording (no 'depth' array; has "
                         f"{short_repr(sorted(keys), 60)}); see docs/formats.md"
                     )
-                depth = _array(data, "depth", p)
                 ts = _array(data, "timestamps", p) if "timestamps" in keys else None
                 scale = _array(data, "depth_scale", p) if "depth_scale" in keys else None
                 K = _array(data, "K", p) if "K" in keys else None
+            self._member = _depth_member(p)
         except SourceError:
             raise
         except (OSError, ValueError, zipfile.BadZipFile, zlib.error, EOFError,
@@ -55,37 +65,133 @@ class NpzSource(SourceBase):
                 f"{p}: not a readable .npz recording ({_first_line(e)}); give a depth recording "
                 "(docs/formats.md)"
             ) from e
-        if depth.dtype != np.uint16:
+        m = self._member
+        if m.dtype != np.uint16:
             raise SourceError(
-                f"{p}: depth has dtype {depth.dtype}, expected uint16; convert with "
+                f"{p}: depth has dtype {m.dtype}, expected uint16; convert with "
                 "depth.astype(np.uint16) in depth_scale units"
             )
-        if depth.ndim != 3:
+        if len(m.shape) != 3:
             raise SourceError(
-                f"{p}: depth has shape {depth.shape}, expected (N, H, W); stack frames on axis 0"
+                f"{p}: depth has shape {m.shape}, expected (N, H, W); stack frames on axis 0"
             )
-        if depth.shape[0] == 0:
+        if m.shape[0] == 0:
             raise SourceError(f"{p}: the recording has no frames; record again")
-        if depth.shape[1] < 8 or depth.shape[2] < 8:
-            raise SourceError(f"{p}: frames of {depth.shape[1:]} are too small; expected H, W >= 8")
+        if m.shape[1] < 8 or m.shape[2] < 8:
+            raise SourceError(f"{p}: frames of {m.shape[1:]} are too small; expected H, W >= 8")
         if ts is None:
             raise SourceError(f"{p}: no 'timestamps' array; add float64 seconds, one per frame")
         if scale is None:
             raise SourceError(f"{p}: no 'depth_scale'; add metres per unit, e.g. 0.001")
-        self.depth = depth
-        self.timestamps = validate_timestamps(ts, depth.shape[0], str(p))
+        self.path = p
+        self.n_frames = int(m.shape[0])
+        self.timestamps = validate_timestamps(ts, self.n_frames, str(p))
         self.depth_scale_m = validate_depth_scale(scale, str(p))
         self.K = validate_K(K, str(p))
-        self.resolution_wh = (int(depth.shape[2]), int(depth.shape[1]))
+        self.resolution_wh = (int(m.shape[2]), int(m.shape[1]))
         dt = np.diff(self.timestamps)
         self.fps = float(1.0 / np.median(dt)) if dt.size else None
 
     def __len__(self) -> int:
-        return int(self.depth.shape[0])
+        return self.n_frames
+
+    @property
+    def compressed(self) -> bool:
+        return self._member.compressed
 
     def frames(self) -> Iterator[Frame]:
-        for i in range(self.depth.shape[0]):
-            yield Frame(self.depth[i], float(self.timestamps[i]), i, self.depth_scale_m, self.K)
+        ts, scale, K = self.timestamps, self.depth_scale_m, self.K
+        try:
+            for i, depth in enumerate(_read_frames(self.path, self._member)):
+                yield Frame(depth, float(ts[i]), i, scale, K)
+        except (OSError, ValueError, zipfile.BadZipFile, zlib.error, EOFError) as e:
+            raise SourceError(
+                f"{self.path}: the depth data is damaged ({_first_line(e)}); record again or "
+                "replay the frames before it"
+            ) from e
+
+    def read_all(self) -> np.ndarray:
+        """The whole depth array (N, H, W), in memory: for short recordings and tests."""
+        return np.stack([f.depth for f in self.frames()])
+
+
+@dataclass(frozen=True)
+class _Member:
+    """Where the depth array lies in the archive: its .npy header and raw data."""
+
+    name: str
+    shape: tuple[int, ...]
+    dtype: np.dtype
+    compressed: bool
+    data_offset: int  # stored members: file offset of the first element; else header length
+
+
+def _depth_member(p: Path) -> _Member:
+    """Read the depth member's .npy header without reading its data."""
+    with zipfile.ZipFile(p) as zf:
+        name = "depth.npy" if "depth.npy" in zf.namelist() else "depth"
+        info = zf.getinfo(name)
+        with zf.open(info) as fh:
+            version = np.lib.format.read_magic(fh)
+            if version == (1, 0):
+                shape, fortran, dtype = np.lib.format.read_array_header_1_0(fh)
+            else:
+                shape, fortran, dtype = np.lib.format.read_array_header_2_0(fh)
+            header_len = fh.tell()
+    if fortran and len(shape) > 1:
+        raise ValueError("depth is stored in Fortran order")
+    if dtype.hasobject:
+        raise ValueError("not an array archive")
+    compressed = info.compress_type != zipfile.ZIP_STORED
+    offset = header_len
+    if not compressed:
+        with p.open("rb") as fh:  # the local file header: 30 bytes, then name and extra
+            fh.seek(info.header_offset)
+            local = fh.read(30)
+            if len(local) < 30 or local[:4] != b"PK\x03\x04":
+                raise zipfile.BadZipFile("bad local file header")
+            n_name = int.from_bytes(local[26:28], "little")
+            n_extra = int.from_bytes(local[28:30], "little")
+            offset = info.header_offset + 30 + n_name + n_extra + header_len
+            need = offset + int(np.prod(shape)) * dtype.itemsize
+            if fh.seek(0, os.SEEK_END) < need:
+                raise EOFError("the depth data is truncated")
+    return _Member(name, tuple(int(s) for s in shape), dtype, compressed, offset)
+
+
+_RELEASE_EVERY = 64  # frames between releases of the mapped pages already played
+
+
+def _read_frames(p: Path, m: _Member) -> Iterator[np.ndarray]:
+    n, h, w = m.shape
+    frame_bytes = h * w * m.dtype.itemsize
+    if not m.compressed:
+        with p.open("rb") as fh, mmap.mmap(fh.fileno(), 0, access=mmap.ACCESS_READ) as mm:
+            aligned = m.data_offset % m.dtype.itemsize == 0
+            released = 0
+            for i in range(n):
+                start = m.data_offset + i * frame_bytes
+                view = np.frombuffer(mm, m.dtype, h * w, start).reshape(h, w)
+                # the view keeps the map open; an unaligned one is copied (compiled kernels
+                # take aligned arrays)
+                yield view if aligned else view.copy()
+                if i - released >= _RELEASE_EVERY and hasattr(mm, "madvise"):
+                    # played pages go back to the page cache: a mapped file would otherwise
+                    # count whole in this process's memory (re-read from the file if needed)
+                    lo = (m.data_offset + released * frame_bytes) // mmap.PAGESIZE * mmap.PAGESIZE
+                    hi = start // mmap.PAGESIZE * mmap.PAGESIZE
+                    if hi > lo:
+                        mm.madvise(mmap.MADV_DONTNEED, lo, hi - lo)
+                    released = i
+            del view
+        return
+    with zipfile.ZipFile(p) as zf, zf.open(m.name) as fh:
+        fh.read(m.data_offset)  # the .npy header
+        for _ in range(n):
+            buf = fh.read(frame_bytes)
+            if len(buf) != frame_bytes:
+                raise EOFError("the depth data is truncated")
+            yield np.frombuffer(bytearray(buf), m.dtype).reshape(h, w)
 
 
 def _first_line(e: BaseException, limit: int = 80) -> str:
@@ -119,15 +225,17 @@ def write_npz(
     timestamps_s: np.ndarray,
     depth_scale_m: float = 0.001,
     K: np.ndarray | None = None,
+    *,
+    compress: bool = True,
 ) -> Path:
     """Write a recording atomically (a temporary file renamed into place).
 
     depth: uint16 (N, H, W) with N >= 1; timestamps_s: (N,) strictly increasing seconds;
-    depth_scale_m: metres per unit in [1e-6, 1]; K: (3, 3) or None. Whatever is written here
-    reads back through :class:`NpzSource`; invalid arguments raise SourceError before any file
-    is created.
+    depth_scale_m: metres per unit in [1e-6, 1]; K: (3, 3) or None. compress: deflate the
+    members (smaller) or store them (replays fastest: memory-mapped, no decompression).
+    Whatever is written here reads back through :class:`NpzSource`; invalid arguments raise
+    SourceError before any file is created.
     """
-    p = Path(path)
     if depth.dtype != np.uint16 or depth.ndim != 3 or depth.shape[0] == 0:
         raise SourceError(
             f"write_npz: depth must be uint16 (N, H, W) with N >= 1, got {depth.dtype} "
@@ -141,32 +249,15 @@ def write_npz(
     Kv = validate_K(K, "write_npz")
     if Kv is not None:
         arrays["K"] = Kv
-    parent = p.parent if str(p.parent) else Path(".")
-    if p.is_dir():
-        raise SourceError(f"{p}: is a folder; give a file name ending in .npz")
-    if not parent.is_dir():
-        raise SourceError(f"{p}: folder {parent} does not exist; create it first")
-    return save_npz_atomic(p, arrays, SourceError)
+    return save_npz_atomic(Path(path), arrays, SourceError, compress=compress,
+                           what="the recording (.npz)")
 
 
-def save_npz_atomic(
-    path: Path, arrays: dict[str, np.ndarray], error: type[DepthTouchError]
-) -> Path:
-    """Write a compressed ``.npz`` to a temporary file beside ``path`` and rename it into place,
-    so that a failed write never leaves a half-written file; OS errors become ``error``."""
-    parent = path.parent if str(path.parent) else Path(".")
-    try:
-        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".part", dir=parent)
-    except OSError as e:
-        raise error(f"{path}: cannot write here ({e.strerror}); choose another path") from e
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            np.savez_compressed(fh, **arrays)  # type: ignore[arg-type]
-        os.replace(tmp, path)
-    except OSError as e:
-        Path(tmp).unlink(missing_ok=True)
-        raise error(f"{path}: cannot write ({e.strerror}); choose another path") from e
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+def save_npz_atomic(path: Path, arrays: dict[str, np.ndarray], error: type[DepthTouchError],
+                    *, compress: bool = True, what: str = "the output") -> Path:
+    """Write an ``.npz`` all or nothing (see :func:`depthtouch.files.atomic_path`); a folder
+    or a missing folder, and OS errors, become ``error``."""
+    save = np.savez_compressed if compress else np.savez
+    with atomic_path(path, what=what, error=error) as tmp, tmp.open("wb") as fh:
+        save(fh, **arrays)  # type: ignore[arg-type]
     return path

@@ -76,7 +76,8 @@ class NpzRecordingWriter:
             if commit and self.count:
                 w, h = self.resolution_wh
                 raw = np.memmap(self._tmp, dtype=np.uint16, mode="r", shape=(self.count, h, w))
-                write_npz(self.path, raw, np.asarray(self._ts), self.depth_scale_m, self.K)
+                write_npz(self.path, raw, np.asarray(self._ts), self.depth_scale_m, self.K,
+                          compress=False)  # stored members replay fastest (memory-mapped)
                 del raw
         finally:
             self._tmp.unlink(missing_ok=True)
