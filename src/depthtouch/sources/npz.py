@@ -185,10 +185,10 @@ def _read_frames(p: Path, m: _Member) -> Iterator[np.ndarray]:
                     released = i
             del view
         return
-    with zipfile.ZipFile(p) as zf, zf.open(m.name) as fh:
-        fh.read(m.data_offset)  # the .npy header
+    with zipfile.ZipFile(p) as zf, zf.open(m.name) as member:
+        member.read(m.data_offset)  # the .npy header
         for _ in range(n):
-            buf = fh.read(frame_bytes)
+            buf = member.read(frame_bytes)
             if len(buf) != frame_bytes:
                 raise EOFError("the depth data is truncated")
             yield np.frombuffer(bytearray(buf), m.dtype).reshape(h, w)

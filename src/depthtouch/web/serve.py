@@ -221,7 +221,8 @@ def run_serve(
 
     try:
         pipeline = Pipeline(config, calibration=calibration, surface_frames=surface_frames)
-        page = WebPage((host, port), pipeline, source_name=name, calibration_out=out, allowed_origins=allowed_origins)
+        page = WebPage((host, port), pipeline, source_name=name, calibration_out=out,
+                       allowed_origins=allowed_origins)
         page.__enter__()
     except BaseException:
         opened[0].close()
