@@ -703,6 +703,7 @@ def run_live(
     config: Any = None,
     events_path: str | Path | None = None,
     tuio: str | None = None,
+    uinput: bool = False,
     serve: str | None = None,
     calibration_path: str | Path | None = None,
     surface_path: str | Path | None = None,
@@ -718,7 +719,8 @@ def run_live(
 
     source: a spec for :func:`~depthtouch.sources.open_source` (cameras stream live, recordings
     and ``sim:`` are paced at their own timestamps) or a factory returning a source.
-    tuio: "HOST:PORT" for TUIO 1.1 over UDP. serve: "HOST:PORT" for the web page.
+    tuio: "HOST:PORT" for TUIO 1.1 over UDP. uinput: also a virtual touchscreen (Linux).
+    serve: "HOST:PORT" for the web page.
     """
     from .outputs.jsonl import JsonlSink
     from .pipeline import Pipeline
@@ -748,7 +750,7 @@ def run_live(
         return src
     stop = threading.Event()
     timer = threading.Timer(max_seconds, stop.set) if max_seconds else None
-    sinks = build_sinks(events_path, tuio, calibration)
+    sinks = build_sinks(events_path, tuio, calibration, uinput=uinput)
     completed = False
     try:
         with contextlib.ExitStack() as stack:

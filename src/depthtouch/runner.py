@@ -83,8 +83,9 @@ def build_sinks(
     events_path: str | Path | None = None,
     tuio: str | None = None,
     calibration: object | None = None,
+    uinput: bool = False,
 ) -> list[EventSink]:
-    """The sinks a command asked for (JSON Lines file, TUIO UDP)."""
+    """The sinks a command asked for (JSON Lines file, TUIO UDP, virtual touchscreen)."""
     from .outputs.jsonl import JsonlSink
 
     sinks: list[EventSink] = []
@@ -96,6 +97,11 @@ def build_sinks(
 
             host, port = parse_hostport(tuio)
             sinks.append(TuioSink(host, port, calibration=calibration))  # type: ignore[arg-type]
+        if uinput:
+            from .outputs.uinput import UinputSink
+
+            # without a calibration the device takes the depth image's size at the first frame
+            sinks.append(UinputSink(calibration=calibration))
     except BaseException:
         # a later sink failed: the ones already open keep nothing (no temporary events file)
         for s in sinks:
@@ -125,6 +131,7 @@ def replay(
     surface_frames: int | None = None,
     filter_name: str | None = None,
     tuio: str | None = None,
+    uinput: bool = False,
     calibration_path: str | Path | None = None,
     progress: bool = False,
 ) -> RunSummary:
@@ -159,7 +166,7 @@ def replay(
     with contextlib.ExitStack() as stack:
         source = stack.enter_context(open_source(recording))
         _check_surface_fits(source, surface, surface_frames, cfg)
-        sinks = build_sinks(events_path, tuio, calibration)
+        sinks = build_sinks(events_path, tuio, calibration, uinput=uinput)
         for s in sinks:
             stack.enter_context(s)  # type: ignore[arg-type]
         summary = RunSummary(source=str(recording))
