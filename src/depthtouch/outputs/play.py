@@ -66,20 +66,39 @@ class _Terminated(Exception):
     """SIGTERM arrived: stop playing, lift every contact, end normally."""
 
 
-@contextlib.contextmanager
-def _sigterm_stops() -> Iterator[None]:
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
+class _SigtermStops:
+    """While installed, SIGTERM raises _Terminated in the main thread, but never inside
+    :meth:`atomic` (a frame half written to a device): there it takes effect at the block's end."""
 
-    def handler(signum: int, frame: FrameType | None) -> None:
-        raise _Terminated
+    def __init__(self) -> None:
+        self._critical = False
+        self._pending = False
+        self._previous: Any = None
 
-    previous = signal.signal(signal.SIGTERM, handler)
-    try:
-        yield
-    finally:
-        signal.signal(signal.SIGTERM, previous)
+    def _handler(self, signum: int, frame: FrameType | None) -> None:
+        if self._critical:
+            self._pending = True
+        else:
+            raise _Terminated
+
+    @contextlib.contextmanager
+    def atomic(self) -> Iterator[None]:
+        self._critical = True
+        try:
+            yield
+        finally:
+            self._critical = False
+        if self._pending:
+            raise _Terminated
+
+    def __enter__(self) -> _SigtermStops:
+        if threading.current_thread() is threading.main_thread():
+            self._previous = signal.signal(signal.SIGTERM, self._handler)
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        if self._previous is not None:
+            signal.signal(signal.SIGTERM, self._previous)
 
 
 def _screen(calibration_path: str | Path | None, screen_wh_px: tuple[int, int] | None) -> Any:
@@ -153,7 +172,7 @@ def play(
     touched: set[int] = set()
     start = clock()
     try:
-        with _sigterm_stops(), contextlib.ExitStack() as stack:
+        with _SigtermStops() as sigterm, contextlib.ExitStack() as stack:
             opened = open_sinks(calibration, uinput=uinput, tuio=tuio,
                                 uinput_settle_s=uinput_settle_s)
             for _, s in opened:
@@ -167,8 +186,9 @@ def play(
                     if delay > 0:
                         sleep(delay)
                 frame = Frame(canvas, batch[0].t, batch[0].frame)
-                for _, s in opened:
-                    s.send(frame, batch)
+                with sigterm.atomic():
+                    for _, s in opened:
+                        s.send(frame, batch)
                 summary.frames += 1
                 summary.events += len(batch)
                 touched.update(e.id for e in batch)

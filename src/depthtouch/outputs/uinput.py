@@ -68,7 +68,9 @@ class UinputConfig:
     touch_major: also report ``ABS_MT_TOUCH_MAJOR`` from the events' ``area`` (the diameter of a
         disc of that many depth pixels, in depth pixels; default False).
     settle_s: wait after creating the device so that the desktop opens it before the first touch,
-        seconds in [0, 10] (default 0.5; events written before a reader opens it are lost).
+        and before destroying it so that the desktop reads the last releases, seconds in [0, 10]
+        (default 0.5; the kernel delivers nothing before a reader opens the device and drops
+        what is unread when it goes).
     name: the device name shown by evtest and libinput.
     """
 
@@ -360,5 +362,12 @@ class UinputSink(SinkBase):
         if self.encoder is not None:
             self._write(self.encoder.release_all())
         dev, self._device = self._device, None
-        if dev is not None:
+        if dev is None:
+            return
+        try:
+            # the kernel drops a reader's unread events when the device goes: give the desktop
+            # the time to read the last releases
+            if self.events_written and self._settle_s > 0:
+                time.sleep(self._settle_s)
+        finally:
             dev.close()
