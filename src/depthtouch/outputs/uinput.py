@@ -244,8 +244,10 @@ class TouchEncoder:
         return out
 
 
-def check_uinput_access(path: str = UINPUT_PATH) -> None:
-    """OutputError naming the fix when ``path`` is missing or not writable by this user."""
+def check_uinput_access(path: str | None = None) -> None:
+    """OutputError naming the fix when ``path`` (default /dev/uinput) is missing or not writable
+    by this user."""
+    path = path or UINPUT_PATH
     if not os.path.exists(path):
         raise OutputError(f"{path} does not exist; {_FIX}")
     if not os.access(path, os.R_OK | os.W_OK):
@@ -268,7 +270,8 @@ class UinputSink(SinkBase):
     screen_wh_px: the axes' ranges; None takes the calibration's screen, else the first frame's
         depth-image size (the device is then created at the first frame).
     calibration: maps events without ``sx``, ``sy``; see :class:`TouchEncoder`.
-    slots, touch_major, settle_s: see :class:`UinputConfig`. path: the uinput node.
+    slots, touch_major, settle_s: see :class:`UinputConfig`. path: the uinput node (default
+    /dev/uinput).
 
     Raises OutputError (one line naming the fix) when ``path`` is missing or not writable, or
     python-evdev is not installed. Write errors are counted in ``errors`` and logged once.
@@ -282,13 +285,13 @@ class UinputSink(SinkBase):
         slots: int = 10,
         touch_major: bool = False,
         settle_s: float = 0.5,
-        path: str = UINPUT_PATH,
+        path: str | None = None,
     ) -> None:
         if screen_wh_px is None and calibration is not None:
             screen_wh_px = tuple(calibration.screen_wh)
         self._slots, self._touch_major, self._settle_s = slots, touch_major, settle_s
         self.calibration = calibration
-        self.path = path
+        self.path = path = path or UINPUT_PATH
         self.encoder: TouchEncoder | None = None
         if screen_wh_px is not None:  # validate before touching the device
             self.encoder = TouchEncoder(self._config(screen_wh_px), calibration)
