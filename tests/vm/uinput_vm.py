@@ -205,8 +205,9 @@ def boot(assets: Assets, script: Path, timeout_s: float = 300.0, memory: str = "
 
     Returns the serial console's lines. QEMU is killed by its PID after ``timeout_s``.
     """
-    cmd = [QEMU, "-accel", "tcg", "-m", memory, "-smp", "1", "-nodefaults", "-display", "none",
-           "-no-reboot", "-kernel", str(assets.kernel), "-initrd", str(assets.initramfs),
+    # -cpu max: the default qemu64 model lacks SSE4.2/AVX, which numpy's wheels need (SIGILL)
+    cmd = [QEMU, "-accel", "tcg", "-cpu", "max", "-m", memory, "-smp", "1", "-nodefaults",
+           "-display", "none", "-no-reboot", "-kernel", str(assets.kernel), "-initrd", str(assets.initramfs),
            "-append", f"console=ttyS0 panic=-1 quiet dt_script={script}",
            "-virtfs", "local,path=/,mount_tag=hostroot,security_model=none,readonly=on,"
                       "multidevs=remap",
