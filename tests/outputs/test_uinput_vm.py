@@ -35,6 +35,7 @@ class Contact:
     tracking_id: int
     positions: list[tuple[int, int]] = field(default_factory=list)
     released: bool = False
+    release_rank: int = -1  # 0 for the first contact released, 1 for the next...
 
 
 def contacts_from_kernel(stream: list[tuple[int, int, int]]) -> tuple[list[Contact], int]:
@@ -65,7 +66,7 @@ def contacts_from_kernel(stream: list[tuple[int, int, int]]) -> tuple[list[Conta
                 xy.setdefault(slot, [0, 0])
                 note(slot)  # an up's last position travels in its release report
                 del live[slot]
-                old.released = True
+                old.released, old.release_rank = True, len(done)
                 done.append(old)
             if value >= 0:
                 live[slot] = Contact(value)
@@ -79,29 +80,40 @@ def contacts_from_kernel(stream: list[tuple[int, int, int]]) -> tuple[list[Conta
     return contacts, touch
 
 
-def expected_touches(events_path: Path) -> tuple[dict[int, list[tuple[float, float]]], int]:
-    """Each touch id (in the order of its down) -> its screen positions, one per event, clipped
-    to the screen like the device's axes; and how many downs found all 10 slots taken (the
-    replay reports up to 13 touches at once when the arms leave: those are not on the device)."""
-    out: dict[int, list[tuple[float, float]]] = {}
+@dataclass
+class Expected:
+    """From the events file: each touch id (in the order of its down) -> its screen positions,
+    one per event, clipped to the screen like the device's axes; the ids in the order of their
+    ups; how many downs found all slots taken (the replay reports up to 13 touches at once when
+    the arms leave: those never reach the device)."""
+
+    positions: dict[int, list[tuple[float, float]]]
+    ups: list[int]
+    dropped: int
+
+
+def expected_touches(events_path: Path) -> Expected:
+    want = Expected({}, [], 0)
     down: set[int] = set()
     dropped: set[int] = set()
     for e in read_events(events_path):
         sx = min(max(float(e.extra["sx"]), 0.0), SCREEN_WH[0] - 1.0)
         sy = min(max(float(e.extra["sy"]), 0.0), SCREEN_WH[1] - 1.0)
         if e.state == "down":
-            assert e.id not in out and e.id not in dropped, "a touch id went down twice"
+            assert e.id not in want.positions and e.id not in dropped, "an id went down twice"
             if len(down) == SLOTS:
                 dropped.add(e.id)
                 continue
             down.add(e.id)
-            out[e.id] = []
+            want.positions[e.id] = []
         if e.id in dropped:
             continue
-        out[e.id].append((sx, sy))
+        want.positions[e.id].append((sx, sy))
         if e.state == "up":
             down.discard(e.id)
-    return out, len(dropped)
+            want.ups.append(e.id)
+    want.dropped = len(dropped)
+    return want
 
 
 def rounded(want: list[tuple[float, float]]) -> list[tuple[int, int]]:
@@ -197,12 +209,12 @@ def vm_run(assets, calibrated_events):
     assert "DT-VM: end" in result.lines, f"the guest script did not finish:\n{text}"
     errors = [ln for ln in result.lines if ln.startswith(("DT-ERR", "DT-VM: insmod", "Traceback"))]
     assert not errors, "\n".join(errors)
-    want, dropped = expected_touches(events)
-    return result, want, dropped
+    return result, expected_touches(events)
 
 
 def test_kernel_delivers_the_events_file(vm_run):
-    result, want, dropped = vm_run
+    result, expected = vm_run
+    want, dropped = expected.positions, expected.dropped
     section = _section(result.lines, "full")
     assert "DT-RC 0" in section
     dev = next(ln for ln in section if ln.startswith("DT-DEV"))
@@ -213,6 +225,8 @@ def test_kernel_delivers_the_events_file(vm_run):
     assert len({c.tracking_id for c in contacts}) == len(contacts)
     assert all(c.released for c in contacts), "every contact released"
     assert touch == 0
+    released = sorted(zip(contacts, want), key=lambda cw: cw[0].release_rank)
+    assert [tid for _, tid in released] == expected.ups, "released in the order of the ups"
     errs = [compare(c, w) for c, w in zip(contacts, want.values())]
     for c, w in zip(contacts, want.values()):
         assert c.positions == rounded(w), f"tracking id {c.tracking_id}: positions differ"
@@ -223,7 +237,8 @@ def test_kernel_delivers_the_events_file(vm_run):
 
 
 def test_sigterm_mid_touch_releases_every_contact(vm_run):
-    result, want, _ = vm_run
+    result, expected = vm_run
+    want = expected.positions
     section = _section(result.lines, "sigterm")
     assert "DT-KILL" in section and "DT-RC 0" in section
     kill = section.index("DT-KILL")
