@@ -39,6 +39,8 @@ def _add_common_outputs(p: argparse.ArgumentParser) -> None:
         help="send TUIO 1.1 /tuio/2Dcur over UDP (default 127.0.0.1:3333)",
     )
     p.add_argument("--calibration", help="screen calibration file (adds sx, sy to events)")
+    p.add_argument("--uinput", action="store_true",
+                   help="also touch the desktop: a virtual touchscreen (Linux, docs/uinput.md)")
 
 
 # --- replay -------------------------------------------------------------------------------------
@@ -72,6 +74,7 @@ def _add_replay(sub: argparse._SubParsersAction) -> None:
             surface_frames=a.surface_frames,
             filter_name=a.filter,
             tuio=a.tuio,
+            uinput=a.uinput,
             calibration_path=a.calibration,
             progress=not a.quiet,
             realtime=1.0 if paced else None,
@@ -407,6 +410,7 @@ def _add_run(sub: argparse._SubParsersAction) -> None:
             3.0 if is_live_spec(a.source) else 0.0)
         result = run_live(
             a.source, config=_load_config(a.config), events_path=a.events, tuio=a.tuio,
+            uinput=a.uinput,
             serve=a.serve, calibration_path=a.calibration, surface_path=a.surface,
             save_surface_path=a.save_surface, source_options=opts,
             live_config=LiveConfig(countdown_s=countdown), max_seconds=a.seconds,
@@ -456,8 +460,40 @@ def _add_record(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=run)
 
 
+# --- play ---------------------------------------------------------------------------------------
+def _add_play(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("play", help="play a touch-events file into a virtual touchscreen or TUIO")
+    p.add_argument("events", help="touch events JSON Lines file (from replay --events)")
+    p.add_argument("--uinput", action="store_true",
+                   help="touch the desktop through a virtual touchscreen (Linux, docs/uinput.md)")
+    p.add_argument("--tuio", metavar="HOST:PORT", nargs="?", const="127.0.0.1:3333",
+                   help="send TUIO 1.1 /tuio/2Dcur over UDP (default 127.0.0.1:3333)")
+    p.add_argument("--calibration", help="the replay's calibration file (gives the screen size)")
+    p.add_argument("--screen", metavar="WxH",
+                   help="range of the positions instead of --calibration: the screen (events "
+                        "with sx, sy) or the depth image")
+    p.add_argument("--fast", action="store_true", help="do not wait between frames")
+    p.add_argument("--uinput-settle", type=float, default=0.5, metavar="S",
+                   help="seconds to wait for the desktop to open the new device (default 0.5)")
+    p.add_argument("-q", "--quiet", action="store_true", help="print only errors")
+
+    def run(a: argparse.Namespace) -> int:
+        from .calibration import parse_screen_wh
+        from .outputs.play import play
+
+        summary = play(a.events, uinput=a.uinput, tuio=a.tuio, calibration_path=a.calibration,
+                       screen_wh_px=parse_screen_wh(a.screen) if a.screen else None,
+                       fast=a.fast, uinput_settle_s=a.uinput_settle)
+        if not a.quiet:
+            print(summary.describe(), flush=True)
+        return 0
+
+    p.set_defaults(func=run)
+
+
 _COMMANDS: list[Callable[[argparse._SubParsersAction], None]] = [
     _add_replay,
+    _add_play,
     _add_calibrate,
     _add_gestures,
     _add_eval,

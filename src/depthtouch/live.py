@@ -288,6 +288,7 @@ def run_live(
     config: Any = None,
     events_path: str | Path | None = None,
     tuio: str | None = None,
+    uinput: bool = False,
     serve: str | None = None,
     calibration_path: str | Path | None = None,
     surface_path: str | Path | None = None,
@@ -304,7 +305,8 @@ def run_live(
 
     source: a spec for :func:`~depthtouch.sources.open_source` (cameras stream live, recordings
     and ``sim:`` are paced at their own timestamps) or a factory returning a source.
-    tuio: "HOST:PORT" for TUIO 1.1 over UDP. serve: "HOST:PORT" for the web page.
+    tuio: "HOST:PORT" for TUIO 1.1 over UDP. uinput: also a virtual touchscreen (Linux).
+    serve: "HOST:PORT" for the web page.
     """
     from .outputs import open_outputs
     from .pipeline import Pipeline
@@ -315,7 +317,8 @@ def run_live(
     live_config = live_config or LiveConfig()
     surface = load_surface(surface_path) if surface_path else None
     gate = LearningGate(live_config.gate())
-    outputs = open_outputs(events_path=events_path, tuio=tuio, calibration_path=calibration_path)
+    outputs = open_outputs(events_path=events_path, tuio=tuio, calibration_path=calibration_path,
+                           uinput=uinput)
     pipeline = Pipeline(config, surface=surface, calibration=outputs.calibration, gate=gate)
     if isinstance(source, str):
         spec, options = source, source_options or {}

@@ -76,6 +76,7 @@ def replay(
     calibration_path: str | Path | None = None,
     progress: bool = False,
     realtime: float | None = None,
+    uinput: bool = False,
     extra_sinks: Sequence[Sink] = (),
 ) -> RunSummary:
     """Run the sensor over a recording; write the outputs asked for.
@@ -102,7 +103,8 @@ def replay(
         source = stack.enter_context(open_source(recording))
         _check_surface_fits(source, surface, surface_frames, cfg)
         outputs = stack.enter_context(open_outputs(events_path=events_path, tuio=tuio,
-                                                   calibration_path=calibration_path))
+                                                   calibration_path=calibration_path,
+                                                   uinput=uinput))
         pipeline = Pipeline(cfg, surface=surface, calibration=outputs.calibration,
                             surface_frames=surface_frames, strict=True)
         n_total = len(source) if hasattr(source, "__len__") else None  # type: ignore[arg-type]

@@ -63,8 +63,11 @@ def open_outputs(
     tuio: str | None = None,
     calibration_path: str | Path | None = None,
     calibration: Any | None = None,
+    uinput: bool = False,
 ) -> Outputs:
-    """Open the outputs a command asked for: an events file, a TUIO sender ("HOST:PORT").
+    """Open the outputs a command asked for: an events file, a TUIO sender ("HOST:PORT"), a
+    virtual touchscreen (Linux uinput; without a calibration it takes the depth image's size at
+    the first frame).
 
     calibration_path: a screen calibration to load (or ``calibration``, already loaded); the
     pipeline adds ``sx``, ``sy`` with it and TUIO normalises to its screen.
@@ -86,6 +89,10 @@ def open_outputs(
             host, port = parse_address(tuio, what="TUIO address", default_port=DEFAULT_PORT)
             screen_wh = calibration.screen_wh if calibration is not None else None
             sinks.append(TuioSink(host, port, screen_wh=screen_wh))
+        if uinput:
+            from .uinput import UinputSink
+
+            sinks.append(UinputSink(calibration=calibration))
     except BaseException:
         Outputs(sinks, calibration).close()  # not committed: the ones already open keep nothing
         raise
