@@ -33,7 +33,7 @@ from ..surface.bounds import HAND_SCALE, BandBounds
 from ..types import TouchPoints
 from .handmap import hand_map
 from .regions import Regions
-from .tipkernel import frame_points
+from .tipkernel import KernelRegions, KernelSurface, TipParams, frame_points
 
 
 def find_touch_points(
@@ -52,17 +52,17 @@ def find_touch_points(
     hands = hand_map(depth, bounds)
     core = regions.band if regions.band is not None else _core_of(regions, depth.shape)
     pad = bounds.open_px // 2 if regions.band is not None else 0
+    b = bounds
     out = frame_points(
-        depth, bounds.high_lo, bounds.high_hi, hands, HAND_SCALE, bounds.surface_mm,
-        bounds.factor, bounds.tl_mm, bounds.valid, float(bounds.to_mm), core, pad,
-        regions.bbox_xywh, regions.mask_buf, regions.mask_start,
-        float(config.tip_radius_mm / bounds.mm_per_px), 1 if config.method == "paper" else 0,
-        int(config.paper_ds_px), float(config.paper_tt_mm),
+        depth, hands, HAND_SCALE,
+        KernelSurface(b.high_lo, b.high_hi, b.surface_mm, b.factor, b.tl_mm, b.valid, b.to_mm),
+        KernelRegions(core, pad, regions.bbox_xywh, regions.mask_buf, regions.mask_start),
+        TipParams(config.tip_radius_mm / b.mm_per_px, config.method == "paper",
+                  config.paper_ds_px, config.paper_tt_mm),
     )
-    if out.shape[0] == 0:
+    if out.xy_px.shape[0] == 0:
         return TouchPoints.empty()
-    return TouchPoints(out[:, 0:2].copy(), out[:, 2].copy(), out[:, 3].astype(np.int64),
-                       out[:, 4:6].copy(), out[:, 6] > 0)
+    return TouchPoints(out.xy_px, out.height_mm, out.area_px, out.hand_xy_px, out.hand_at_border)
 
 
 def _core_of(regions: Regions, shape: tuple[int, ...]) -> np.ndarray:

@@ -9,15 +9,16 @@ overhead (2-5 us each) costs more than the pixels; compiled, a frame with five t
 about 0.1 ms. ``tests/reference_touchpoints.py`` keeps the array-call version, and the tests
 check that both give the same points.
 
-Layout of the arrays handed in: ``boxes`` (R, 4) int64 region boxes (x, y, w, h); ``masks``
-all region masks (uint8, 1 = in, row-major within its box) one after the other, region i
-starting at ``mask_start[i]``. Output rows: x, y (image px, sub-pixel), height (mm, NaN when
-unknown), area (px), hand x, hand y (px), hand at border (0/1).
+:func:`frame_points` is the boundary: named tuples of arrays in (:class:`KernelSurface`,
+:class:`KernelRegions`, :class:`TipParams`), one out (:class:`FramePoints`), units in the names.
+Inside, the compiled kernel takes the arrays one by one and returns (N, 7) rows: x, y (image px,
+sub-pixel), height (mm, NaN when unknown), area (px), hand x, hand y (px), hand at border (0/1).
 """
 
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numba
 import numpy as np
@@ -149,8 +150,72 @@ def _attach(near: np.ndarray, depth: np.ndarray, high_lo: np.ndarray,
     return n, sx / n, sy / n, border
 
 
+class KernelSurface(NamedTuple):
+    """The surface as the kernel reads it (see :class:`depthtouch.surface.bounds.BandBounds`):
+    hand bounds in camera units, surface depth in mm, height factor, Tl in mm, usable pixels,
+    mm per camera unit. All (H, W) but ``to_mm``."""
+
+    high_lo: np.ndarray
+    high_hi: np.ndarray
+    surface_mm: np.ndarray
+    factor: np.ndarray
+    tl_mm: np.ndarray
+    valid: np.ndarray
+    to_mm: float
+
+
+class KernelRegions(NamedTuple):
+    """The regions of a frame: the opened band (uint8 (H, W)) and the pad of its opening (px),
+    boxes (R, 4) int64 (x, y, w, h), all masks (uint8, row-major within the box) one after the
+    other, region i starting at ``mask_start[i]``."""
+
+    core: np.ndarray
+    open_pad_px: int
+    bbox_xywh: np.ndarray
+    mask_buf: np.ndarray
+    mask_start: np.ndarray
+
+
+class TipParams(NamedTuple):
+    """The fingertip radius (px), the estimator (the paper's pixel or the tip's centre) and the
+    paper's parameters (search step in px, height threshold in mm)."""
+
+    tip_radius_px: float
+    paper: bool
+    paper_ds_px: int
+    paper_tt_mm: float
+
+
+class FramePoints(NamedTuple):
+    """The touch points of a frame, parallel arrays of length N: contact (px, sub-pixel),
+    height above the surface (mm, NaN when unknown), region area (px), centre of the attached
+    hand (px), whether that hand reaches the image border."""
+
+    xy_px: np.ndarray
+    height_mm: np.ndarray
+    area_px: np.ndarray
+    hand_xy_px: np.ndarray
+    hand_at_border: np.ndarray
+
+
+def frame_points(depth: np.ndarray, hands: np.ndarray, hand_scale: int, surface: KernelSurface,
+                 regions: KernelRegions, params: TipParams) -> FramePoints:
+    """Touch points of all regions of a frame (one compiled call; see the module doc).
+
+    depth: the uint16 frame; hands: the coarse hand map (uint8, 1/``hand_scale`` resolution,
+    1 = hand, 2 = hand reaching the border).
+    """
+    s, r, p = surface, regions, params
+    out = _frame_points(depth, s.high_lo, s.high_hi, hands, hand_scale, s.surface_mm, s.factor,
+                        s.tl_mm, s.valid, float(s.to_mm), r.core, int(r.open_pad_px),
+                        r.bbox_xywh, r.mask_buf, r.mask_start, float(p.tip_radius_px),
+                        1 if p.paper else 0, int(p.paper_ds_px), float(p.paper_tt_mm))
+    return FramePoints(out[:, 0:2].copy(), out[:, 2].copy(), out[:, 3].astype(np.int64),
+                       out[:, 4:6].copy(), out[:, 6] > 0)
+
+
 @numba.njit(cache=True, nogil=True)
-def frame_points(
+def _frame_points(
     depth: np.ndarray, high_lo: np.ndarray, high_hi: np.ndarray, hands: np.ndarray, scale: int,
     surf: np.ndarray, fact: np.ndarray, tl: np.ndarray, valid: np.ndarray, to_mm: float,
     core: np.ndarray, open_pad: int, boxes: np.ndarray, masks: np.ndarray, mask_start: np.ndarray,
@@ -389,5 +454,6 @@ def warm_up() -> None:
     hands = np.zeros((h // 4, w // 4), np.uint8)
     hands[2:5, 2:5] = 2
     for method in (0, 1):
-        frame_points(depth, lo, hi, hands, 4, f32 * 1000, f32, f32 * 4, valid, 1.0, core, 1,
-                     boxes, masks, start, 3.0, method, 6, 18.0)
+        frame_points(depth, hands, 4, KernelSurface(lo, hi, f32 * 1000, f32, f32 * 4, valid, 1.0),
+                     KernelRegions(core, 1, boxes, masks, start),
+                     TipParams(3.0, method == 1, 6, 18.0))
