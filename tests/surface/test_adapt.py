@@ -171,3 +171,34 @@ def test_exclusions_match_the_opencv_version():
         np.testing.assert_array_equal(got, want)
         compared += int(want.any())
     assert compared > 20
+
+
+def test_save_surface_writes_the_surface_as_it_is_now(tmp_path):
+    """A box put down and absorbed is in the saved surface (replay --save-surface), and X/Y/Z
+    of a touch on it come from the box's top, not the table under it."""
+    from depthtouch.cli import main
+    from depthtouch.sources import write_npz
+    from depthtouch.surface.model import load_surface
+
+    empty = np.zeros((480, 640), np.float32)
+    with_box = box(empty, 250, 200, 350, 260, 60.0)
+    script = [lambda k: with_box] * 120  # 4 s: absorbed after about 1 s
+    fs = list(frames(script))
+    rec = write_npz(tmp_path / "box.npz", np.stack([f.depth for f in fs]),
+                    np.array([f.timestamp_s for f in fs]), 0.001, K_640, compress=False)
+    saved = tmp_path / "surface.npz"
+    assert main(["replay", str(rec), "--surface-frames", "45", "--save-surface", str(saved),
+                 "-q"]) == 0
+    s = load_surface(saved)
+    assert abs(float(s.depth_mm[230, 300]) - 940.0) < 3.0  # the box's top
+    assert abs(float(s.depth_mm[400, 100]) - 1000.0) < 3.0  # the table
+    # the statistics moved with it: a model read with another statistic has the box too
+    for stat in (s.mean_mm, s.mode_mm, s.median_mm):
+        assert abs(float(stat[230, 300]) - 940.0) < 4.0
+    # the pipeline's own surface says the same, and X/Y/Z use it
+    p = Pipeline(surface_frames=45)
+    for f in fs:
+        p.process(f)
+    assert abs(float(p.surface.model().depth_mm[230, 300]) - 940.0) < 3.0
+    (xyz,) = p.surface.xyz_mm([(300.0, 230.0)])
+    assert xyz is not None and abs(xyz[2] - 940.0) < 3.0
