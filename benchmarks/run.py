@@ -174,7 +174,9 @@ def main(argv: list[str] | None = None) -> int:
         cells = [f"{r[s][0]:.3f} / {r[s][1]:.3f}" for s in STAGES]
         cells[-1] = f"**{cells[-1]}**"
         lines.append(f"| {w}x{h} | {n} | {r['found'][0]:.0f} | " + " | ".join(cells) + " |")
-    lines += [""] + _analysis(rows) + _latency_sections()
+    from replay_bench import measure, section
+
+    lines += [""] + _analysis(rows) + section(measure()) + _latency_sections()
     Path(a.out).parent.mkdir(parents=True, exist_ok=True)
     Path(a.out).write_text("\n".join(lines) + "\n", encoding="utf-8")
     print(f"wrote {a.out}")
@@ -227,7 +229,7 @@ def _tuio_latency(n: int = 300) -> dict[str, float]:
     import socket
 
     from depthtouch.outputs.tuio import TuioSink
-    from depthtouch.types import TouchEvent
+    from depthtouch.types import FrameResult, TouchEvent, TouchPoints
 
     rx = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
     rx.bind(("127.0.0.1", 0))
@@ -240,8 +242,9 @@ def _tuio_latency(n: int = 300) -> dict[str, float]:
             f = Frame(img, i / 60, i, 0.001, None)
             evs = [TouchEvent(i, i / 60, k + 1, "down" if i == 0 else "move",
                               100.0 + k * 50 + i % 7, 200.0 + i % 5) for k in range(2)]
+            result = FrameResult(f, evs, TouchPoints.empty(), "ok")
             t0 = time.perf_counter()
-            sink.send(f, evs)
+            sink.send(result)
             t1 = time.perf_counter()
             rx.recv(65536)
             t2 = time.perf_counter()
