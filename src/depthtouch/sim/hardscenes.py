@@ -111,6 +111,7 @@ def _resting_hand(ctx: SceneContext, palm_st: np.ndarray, yaw: float, t_in: floa
     ]
     parts += [(palm_st - 45 * fwd + k * lat, palm_st + 35 * fwd + k * lat, r_palm)
               for k in (-20.0, 0.0, 20.0)]
+    elbow = palm_st - 340 * fwd
 
     def build(t: float) -> list[Primitive]:
         if not (t_in <= t <= t_out + 0.6):
@@ -122,6 +123,13 @@ def _resting_hand(ctx: SceneContext, palm_st: np.ndarray, yaw: float, t_in: floa
             na, nb = s.normal(np.stack([a_st, b_st]))
             out.append(Capsule(pa + (r + gap + drop) * na, pb + (r + gap + drop) * nb, r,
                                LABEL_REST_HAND))
+        # the upper arm rises 45 deg from the elbow, out of view
+        pe, ne = s.point(elbow[None])[0], s.normal(elbow[None])[0]
+        de = s.point((elbow - fwd)[None])[0] - pe
+        e = pe + (1.2 * r_arm + gap + drop) * ne
+        up = de / np.linalg.norm(de) * math.cos(math.radians(45.0)) + \
+            ne * math.sin(math.radians(45.0))
+        out.append(Capsule(e, e + 320.0 * up, r_arm * 1.2, LABEL_REST_HAND))
         return out
 
     return Prop(build)
