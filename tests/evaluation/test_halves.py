@@ -7,6 +7,7 @@ import math
 from typing import Any
 
 import pytest
+from test_evaluation import contact, doc, hover, track
 
 from depthtouch.errors import ConfigError
 from depthtouch.evaluation.halves import (
@@ -22,8 +23,6 @@ from depthtouch.evaluation.halves import (
 )
 from depthtouch.evaluation.metrics import evaluate, truth_from_dict
 from depthtouch.evaluation.suite import SuiteCase, load_suite, suite_from_dict
-
-from test_evaluation import contact, doc, hover, track
 
 
 def test_split_is_deterministic_and_disjoint() -> None:
