@@ -125,3 +125,16 @@ def test_report_puts_halves_side_by_side_per_situation() -> None:
                                       ["far", "held-out"]]
     assert all(r[3] in ("1.000", "0.000") for r in srows)
     assert not any(isinstance(v, float) and math.isnan(v) for v in rep["overall"]["tune"].values())
+
+
+@pytest.mark.parametrize(("argv", "needle"), [
+    (["eval", "--half", "tune"], "--half needs --suite NAME"),
+    (["eval", "--suite", "hard", "--subset", "nope", "--half", "tune"], "has no subset 'nope'"),
+])
+def test_cli_half_errors_are_one_line(argv: list[str], needle: str,
+                                      capsys: pytest.CaptureFixture[str]) -> None:
+    from depthtouch.cli import main
+
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert needle in err and err.count("\n") == 1

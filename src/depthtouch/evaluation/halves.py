@@ -263,3 +263,14 @@ def print_halves(suite: str | Path, half: str, *, subset: str | None = None,
     for table in halves_tables(report):
         console.print(table)
     return 0
+
+
+def halves_markdown(report: dict[str, Any]) -> list[str]:
+    """Markdown lines: the overall figures (halves side by side) and the per-situation table."""
+    out = ["| measure | tune | held-out |", "|---|---|---|"]
+    out += ["| " + " | ".join(row) + " |" for row in overall_rows(report)]
+    heads = [head for _, head, _ in SITUATION_COLS]
+    out += ["", "| situation | half | " + " | ".join(heads) + " |",
+            "|---|---|" + "---|" * len(heads)]
+    out += ["| " + " | ".join(row) + " |" for row in situation_rows(report)]
+    return out
