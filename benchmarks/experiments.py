@@ -76,13 +76,13 @@ def _ranges(ok: Sequence[float], all_d: Sequence[float]) -> str:
 
 
 def _git_head() -> str:
-    head = ROOT / ".git" / "HEAD"
-    try:
-        ref = head.read_text().strip()
-        if ref.startswith("ref: "):
-            return (ROOT / ".git" / ref[5:]).read_text().strip()[:10]
-        return ref[:10]
-    except OSError:
+    import subprocess
+
+    try:  # works in a git worktree too, where .git is a file
+        out = subprocess.run(["git", "-C", str(ROOT), "rev-parse", "HEAD"], capture_output=True,
+                             text=True, check=True, timeout=10)
+        return out.stdout.strip()[:10]
+    except (OSError, subprocess.SubprocessError):
         return "unknown"
 
 
