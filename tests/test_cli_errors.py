@@ -177,7 +177,7 @@ CASES: list[tuple[str, Builder, str]] = [
     ("text file named .npz", _text_as_npz, "not a readable .npz"),
     ("zip without depth", _zip_without_depth, "no 'depth' array"),
     ("bare .npy named .npz", _npy_as_npz, "not an .npz archive"),
-    ("damaged compressed data", _damaged_npz, "not a readable .npz"),
+    ("damaged compressed data", _damaged_npz, "the depth data is damaged"),
     ("float32 depth", lambda t, a: _rec(t, a, depth=a[0].astype(np.float32)), "dtype float32"),
     ("2-D depth", lambda t, a: _rec(t, a, depth=a[0][0]), "expected (N, H, W)"),
     ("0 frames", lambda t, a: _rec(t, a, depth=a[0][:0], timestamps=a[1][:0]), "no frames"),

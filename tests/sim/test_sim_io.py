@@ -53,7 +53,7 @@ def test_open_source_sim_errors(spec: str, options: dict[str, Any], message: str
 def test_write_npz_and_truth_round_trip(tmp_path: Path, small_rec: Any) -> None:
     write_recording(small_rec, tmp_path / "taps.npz", tmp_path / "taps.truth.json")
     src = NpzSource(tmp_path / "taps.npz")
-    assert np.array_equal(src.depth, small_rec.depth)
+    assert np.array_equal(src.read_all(), small_rec.depth)
     assert src.K is not None
     np.testing.assert_allclose(src.K, small_rec.K)
     truth = load_truth(tmp_path / "taps.truth.json")
