@@ -20,8 +20,6 @@ from __future__ import annotations
 
 import json
 import math
-import os
-import tempfile
 from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -31,6 +29,7 @@ import cv2
 import numpy as np
 
 from .errors import CalibrationError
+from .files import write_text_atomic
 from .types import TouchEvent
 
 CALIBRATION_FORMAT = "depthtouch-calibration"
@@ -362,25 +361,8 @@ def calibration_from_dict(data: object, where: str = "calibration") -> Calibrati
 
 def save_calibration(cal: Calibration, path: str | Path) -> Path:
     """Write the calibration as JSON, atomically (temporary file + rename). Returns the path."""
-    p = Path(path)
-    parent = p.parent if str(p.parent) else Path(".")
-    if p.is_dir():
-        raise CalibrationError(f"{p}: is a folder; give a file name for the calibration")
-    if not parent.is_dir():
-        raise CalibrationError(f"{p}: folder {parent} does not exist; create it first")
     text = json.dumps(calibration_to_dict(cal), indent=2) + "\n"
-    try:
-        fd, tmp = tempfile.mkstemp(prefix=f".{p.name}.", suffix=".part", dir=parent)
-    except OSError as e:
-        raise CalibrationError(f"{p}: cannot write here ({e.strerror}); choose another path") from e
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8") as fh:
-            fh.write(text)
-        os.replace(tmp, p)
-    except OSError as e:
-        Path(tmp).unlink(missing_ok=True)
-        raise CalibrationError(f"{p}: cannot write ({e.strerror}); choose another path") from e
-    return p
+    return write_text_atomic(path, text, what="the calibration", error=CalibrationError)
 
 
 def load_calibration(path: str | Path) -> Calibration:

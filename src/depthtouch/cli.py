@@ -10,7 +10,6 @@ from __future__ import annotations
 import argparse
 import sys
 from collections.abc import Callable, Sequence
-from pathlib import Path
 from typing import TYPE_CHECKING
 
 from .errors import DepthTouchError
@@ -298,10 +297,8 @@ def _add_gestures(sub: argparse._SubParsersAction) -> None:
 
     def run(a: argparse.Namespace) -> int:
         import json
-        import os
-        import tempfile
 
-        from .errors import OutputError
+        from .files import write_text_atomic
         from .gestures import GestureConfig, recognize_all
         from .outputs.jsonl import read_events
 
@@ -310,15 +307,7 @@ def _add_gestures(sub: argparse._SubParsersAction) -> None:
         if not a.out:
             sys.stdout.write(lines)
             return 0
-        out = Path(a.out)
-        parent = out.parent if str(out.parent) else Path(".")
-        try:
-            fd, tmp = tempfile.mkstemp(prefix=f".{out.name}.", suffix=".part", dir=parent)
-            with os.fdopen(fd, "w", encoding="utf-8") as fh:
-                fh.write(lines)
-            os.replace(tmp, out)
-        except OSError as e:
-            raise OutputError(f"{out}: cannot write ({e.strerror}); choose another path") from e
+        out = write_text_atomic(a.out, lines, what="the gestures")
         print(f"{len(found)} gestures -> {out}")
         return 0
 

@@ -13,12 +13,8 @@ import pytest
 from depthtouch.errors import SourceError
 from depthtouch.pipeline import Pipeline
 from depthtouch.sources import NpzSource, open_source, write_npz
-from depthtouch.sources.realsense import (
-    RealSenseRecordingWriter,
-    RealSenseSource,
-    choose_depth_mode,
-    write_realsense_recording,
-)
+from depthtouch.sources.realsense import RealSenseSource, choose_depth_mode
+from depthtouch.sources.realsense_record import RealSenseRecordingWriter, write_realsense_recording
 from depthtouch.types import Frame
 from synth import Finger, make_recording
 

@@ -9,8 +9,6 @@ from __future__ import annotations
 
 import json
 import math
-import os
-import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -18,6 +16,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import ConfigError, SourceError
+from ..files import write_text_atomic
 from .cameras import NoiseModel, get_profile
 from .geometry import Primitive, Rays, Surface, make_surface, render_primitives, rotation_xyz
 from .hand import FINGERS, build_hand
@@ -246,17 +245,8 @@ def _truth_doc(scene: str, seed: int, camera: str, rays: Rays, fps: float, surf:
 
 # --- files ----------------------------------------------------------------------------------------
 def _write_json_atomic(path: Path, doc: dict[str, Any]) -> None:
-    parent = path.parent if str(path.parent) else Path(".")
-    if not parent.is_dir():
-        raise SourceError(f"{path}: folder {parent} does not exist; create it first")
-    fd, tmp = tempfile.mkstemp(suffix=".json", dir=parent)
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8") as fh:
-            json.dump(doc, fh, separators=(",", ":"))
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+    write_text_atomic(path, json.dumps(doc, separators=(",", ":")), what="the truth",
+                      error=SourceError)
 
 
 def write_recording(rec: SimRecording, out: str | Path, truth_path: str | Path) -> None:

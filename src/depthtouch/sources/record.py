@@ -139,7 +139,7 @@ def open_writer(out: str | Path, source: DepthSource) -> RecordingWriter:
     if suffix == ".npz":
         return NpzRecordingWriter(p, source.resolution_wh, source.depth_scale_m, source.K)
     if suffix in (".db3", ".bag"):
-        from .realsense import RealSenseRecordingWriter
+        from .realsense_record import RealSenseRecordingWriter
 
         return RealSenseRecordingWriter(p, source.resolution_wh, source.depth_scale_m, source.K,
                                         source.fps or 30.0)

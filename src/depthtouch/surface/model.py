@@ -52,10 +52,6 @@ class SurfaceModel:
     def resolution_wh(self) -> tuple[int, int]:
         return int(self.depth_mm.shape[1]), int(self.depth_mm.shape[0])
 
-    @property
-    def valid_fraction(self) -> float:
-        return float(self.valid.mean())
-
     def with_statistic(self, statistic: str) -> SurfaceModel:
         """The same model using another statistic as the surface depth."""
         table = {"mean": self.mean_mm, "mode": self.mode_mm, "median": self.median_mm}
