@@ -387,7 +387,7 @@ class Experiments:
             "`.venv/bin/python benchmarks/experiments.py`. Every number below comes from that "
             "run; nothing is hand-edited.",
             "",
-            "**How it is measured** (`src/depthtouch/evaluation.py`). Per frame, reported "
+            "**How it is measured** (`src/depthtouch/evaluation/metrics.py`). Per frame, reported "
             "touches (`down`/`move` events) are assigned to true contacts by optimal assignment "
             "on the distance on the surface in mm: a reported pixel is back-projected through K "
             "and intersected with the tangent plane at the true contact point; pairs farther "
