@@ -2,16 +2,20 @@
 
 Each command has its own ``_add_<name>`` function that declares its arguments and sets
 ``func``; :data:`_COMMANDS` lists them. A :class:`DepthTouchError` (a user's mistake) becomes one
-line on stderr and exit code 2; Ctrl-C exits 130 after the command's own cleanup.
+line on stderr and exit code 2; Ctrl-C exits 130 after the command's own cleanup. The streaming
+commands (``replay``, ``run``, ``serve``) take SIGTERM and SIGHUP (a service manager, a closed
+terminal) as Ctrl-C, and a stop by any of the three is their normal end: the events file is kept,
+the last empty TUIO ``alive`` sent, sockets closed, exit 0.
 """
 
 from __future__ import annotations
 
 import argparse
+import signal
 import sys
 from collections.abc import Callable, Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 from .errors import DepthTouchError
 
@@ -72,7 +76,7 @@ def _add_replay(sub: argparse._SubParsersAction) -> None:
             print(summary.describe())
         return 0
 
-    p.set_defaults(func=run)
+    p.set_defaults(func=run, stops_cleanly=True)
 
 
 # --- bench-filters ------------------------------------------------------------------------------
@@ -135,7 +139,7 @@ def _add_serve(sub: argparse._SubParsersAction) -> None:
         )
         return 0
 
-    p.set_defaults(func=run)
+    p.set_defaults(func=run, stops_cleanly=True)
 
 
 # --- eval ---------------------------------------------------------------------------------------
@@ -407,7 +411,7 @@ def _add_run(sub: argparse._SubParsersAction) -> None:
             print(result.describe())
         return 0
 
-    p.set_defaults(func=run)
+    p.set_defaults(func=run, stops_cleanly=True)
 
 
 def _add_record(sub: argparse._SubParsersAction) -> None:
@@ -481,16 +485,44 @@ def main(argv: Sequence[str] | None = None) -> int:
     if getattr(args, "func", None) is None:
         parser.print_help()
         return 2
+    clean_stop = bool(getattr(args, "stops_cleanly", False))
+    old = _stop_on_signals() if clean_stop else {}
     try:
         return int(args.func(args) or 0)
     except DepthTouchError as e:
         print(f"depthtouch: error: {e}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
+        if clean_stop:
+            print("depthtouch: stopped", file=sys.stderr)
+            return 0
         print("depthtouch: interrupted", file=sys.stderr)
         return 130
     except BrokenPipeError:
         return 0
+    finally:
+        for signum, handler in old.items():
+            signal.signal(signum, handler)
+
+
+_STOP_SIGNALS = ("SIGTERM", "SIGHUP")
+
+
+def _stop_on_signals() -> dict[int, Any]:
+    """SIGTERM and SIGHUP raise KeyboardInterrupt in the main thread, once: the command's Ctrl-C
+    cleanup runs, and a second signal cannot cut it short. Returns the handlers replaced."""
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        return {}
+    nums = [getattr(signal, n) for n in _STOP_SIGNALS if hasattr(signal, n)]
+
+    def stop(signum: int, frame: object) -> None:
+        for n in nums:
+            signal.signal(n, signal.SIG_IGN)
+        raise KeyboardInterrupt
+
+    return {n: signal.signal(n, stop) for n in nums}
 
 
 def _path_or_none(value: str | None) -> Path | None:
