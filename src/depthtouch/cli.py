@@ -485,14 +485,22 @@ def main(argv: Sequence[str] | None = None) -> int:
     if getattr(args, "func", None) is None:
         parser.print_help()
         return 2
+    from . import stopping
+
     clean_stop = bool(getattr(args, "stops_cleanly", False))
+    stopping.reset()
     old = _stop_on_signals() if clean_stop else {}
     try:
-        return int(args.func(args) or 0)
+        rc = int(args.func(args) or 0)
+        if clean_stop and stopping.requested():
+            print("depthtouch: stopped", file=sys.stderr)
+        return rc
     except DepthTouchError as e:
         print(f"depthtouch: error: {e}", file=sys.stderr)
         return 2
-    except KeyboardInterrupt:
+    except (KeyboardInterrupt, SystemError) as e:
+        if not _interrupted(e):
+            raise
         if clean_stop:
             print("depthtouch: stopped", file=sys.stderr)
             return 0
@@ -505,28 +513,41 @@ def main(argv: Sequence[str] | None = None) -> int:
             signal.signal(signum, handler)
 
 
-_STOP_SIGNALS = ("SIGTERM", "SIGHUP")
+_STOP_SIGNALS = ("SIGTERM", "SIGHUP", "SIGINT")
 
 
 def _stop_on_signals() -> dict[int, Any]:
-    """SIGTERM and SIGHUP raise KeyboardInterrupt in the main thread, once: the command's Ctrl-C
-    cleanup runs, and a second signal cannot cut it short. Returns the handlers replaced."""
+    """SIGTERM, SIGHUP and Ctrl-C stop the command: a loop that listens (see
+    :mod:`depthtouch.stopping`) ends at its next frame; otherwise, or at a second signal,
+    KeyboardInterrupt is raised and the command's Ctrl-C cleanup runs. Returns the handlers
+    replaced."""
     import threading
+
+    from . import stopping
 
     if threading.current_thread() is not threading.main_thread():
         return {}
     nums = [getattr(signal, n) for n in _STOP_SIGNALS if hasattr(signal, n)]
 
     def stop(signum: int, frame: object) -> None:
-        for n in nums:
+        again = stopping.requested()
+        if stopping.request() and not again:
+            return
+        for n in nums:  # the cleanup that follows must not be cut short by a third signal
             signal.signal(n, signal.SIG_IGN)
         raise KeyboardInterrupt
 
     return {n: signal.signal(n, stop) for n in nums}
 
 
-def _path_or_none(value: str | None) -> Path | None:
-    return Path(value) if value else None
+def _interrupted(e: BaseException) -> bool:
+    """A KeyboardInterrupt that a compiled kernel's dispatch turned into a SystemError."""
+    seen: BaseException | None = e
+    while seen is not None:
+        if isinstance(seen, KeyboardInterrupt):
+            return True
+        seen = seen.__cause__ or seen.__context__
+    return False
 
 
 if __name__ == "__main__":  # pragma: no cover

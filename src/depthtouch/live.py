@@ -767,7 +767,10 @@ def run_live(
                 timer.daemon = True
                 timer.start()
             try:
-                loop.run(stop_event=stop)
+                from . import stopping
+
+                with stopping.listen(stop.set):  # SIGTERM / Ctrl-C end the loop between frames
+                    loop.run(stop_event=stop)
             except KeyboardInterrupt:
                 loop.result.interrupted = True
             completed = True

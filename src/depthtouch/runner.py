@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
+from . import stopping
 from .config import PipelineConfig
 from .errors import ConfigError, SourceError
 from .outputs.base import EventSink
@@ -60,17 +61,20 @@ def process_stream(
 ) -> Iterator[tuple[Frame, list[TouchEvent]]]:
     """Run ``pipeline`` over every frame of ``source``, sending each frame to ``sinks``.
 
-    Yields (frame, events). At the end of the stream the touches still active are ended with
-    ``up`` on the last frame (yielded with that frame again).
+    Yields (frame, events). At the end of the stream, or at a stop request (SIGTERM, Ctrl-C), the
+    touches still active are ended with ``up`` on the last frame (yielded with that frame again).
     """
     sinks = sinks or []
     last: Frame | None = None
-    for frame in source.frames():
-        events = pipeline.process(frame)
-        for s in sinks:
-            s.send(frame, events)
-        last = frame
-        yield frame, events
+    with stopping.listen():  # SIGTERM / Ctrl-C: stop here, between frames (see stopping.py)
+        for frame in source.frames():
+            if stopping.requested():
+                break
+            last = frame
+            events = pipeline.process(frame)
+            for s in sinks:
+                s.send(frame, events)
+            yield frame, events
     if last is not None:
         tail = pipeline.finish()
         if tail:

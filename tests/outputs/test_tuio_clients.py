@@ -131,11 +131,19 @@ def test_two_replays_in_a_row_into_one_client(touch_recording, cli):
 
 
 # --- SIGTERM -----------------------------------------------------------------------------------
-@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGHUP])
-def test_signal_mid_touch_exits_0_and_clears_the_client(tmp_path, sig):
-    script = [[Finger(40.0, 30.0)]] * 2500  # a long press: the replay is still in it when killed
+@pytest.fixture(scope="module")
+def long_press_recording(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    script = [[Finger(40.0, 30.0)]] * 2500  # a long press: the command is still in it when killed
     depth, ts = make_recording(50, script, shape=(60, 80), seed=5)
-    rec = write_recording(tmp_path / "long.npz", depth, ts)
+    return Path(write_recording(tmp_path_factory.mktemp("long") / "long.npz", depth, ts))
+
+
+@pytest.mark.parametrize(("command", "sig"), [
+    ("replay", signal.SIGTERM), ("replay", signal.SIGHUP), ("replay", signal.SIGINT),
+    ("run", signal.SIGTERM), ("run", signal.SIGINT),
+])
+def test_signal_mid_touch_exits_0_and_clears_the_client(tmp_path, long_press_recording,
+                                                        command, sig):
     events = tmp_path / "ev.jsonl"
     seen_touch = threading.Event()
 
@@ -145,10 +153,12 @@ def test_signal_mid_touch_exits_0_and_clears_the_client(tmp_path, sig):
             if self.cursors:
                 seen_touch.set()
 
+    source = ([str(long_press_recording)] if command == "replay" else
+              ["--source", str(long_press_recording)])  # run: paced at the recording's 30 fps
     env = dict(os.environ, PYTHONUNBUFFERED="1")
     with UdpListener(Watch()) as lis:
         proc = subprocess.Popen(
-            [sys.executable, "-m", "depthtouch.cli", "replay", str(rec), "--tuio",
+            [sys.executable, "-m", "depthtouch.cli", command, *source, "--tuio",
              f"127.0.0.1:{lis.port}", "--events", str(events), "-q"],
             stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=env, text=True)
         try:
@@ -163,8 +173,24 @@ def test_signal_mid_touch_exits_0_and_clears_the_client(tmp_path, sig):
     assert proc.returncode == 0, err
     assert "stopped" in err
     assert c.violations == [] and c.cursors == {} and len(c.removed()) == len(c.added()) >= 1
-    lines = events.read_text().splitlines()  # the events file was kept
-    assert lines and '"state": "down"' in lines[0]
+    lines = events.read_text().splitlines()  # the events file was kept, the touch ended
+    assert lines and '"state": "down"' in lines[0] and '"state": "up"' in lines[-1]
+
+
+def test_serve_stops_on_sigterm_with_exit_0():
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "depthtouch.cli", "serve", "--source", "sim:taps", "--port", "0"],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        assert proc.stdout is not None
+        line = proc.stdout.readline()  # "depthtouch: serving ... (Ctrl-C to stop)"
+        assert "serving" in line
+        proc.send_signal(signal.SIGTERM)
+        out, err = proc.communicate(timeout=60)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert proc.returncode == 0, err
 
 
 # --- python-tuio at 30 simultaneous touches ----------------------------------------------------
