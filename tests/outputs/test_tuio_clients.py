@@ -13,11 +13,11 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from tuio_client import StrictTuioClient, UdpListener
 
 from depthtouch.outputs.tuio import TuioCursor, TuioSink, encode_frame
 from depthtouch.types import Frame, TouchEvent, TouchState
 from synth import Finger, make_recording, write_recording
-from tuio_client import StrictTuioClient, UdpListener
 
 DEPTH = np.zeros((480, 640), np.uint16)
 
