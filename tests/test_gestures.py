@@ -134,10 +134,10 @@ def test_every_still_press_is_a_tap_or_a_long_press(n_frames):
 
 
 def test_slop_in_mm_with_a_known_scale():
-    # 2 mm per pixel: the 12 mm slop is 6 px; a press wandering 8 px is a drag
+    # 4 mm per pixel: the 25 mm slop is 6.25 px; a press wandering 8 px is a drag
     path = [(200.0 + min(k, 8), 150.0) for k in range(12)]
     assert kinds(run(stream([(1, 0, path)])))[0] == "tap"  # px thresholds: 10 px
-    rec = GestureRecognizer(mm_per_px=2.0)
+    rec = GestureRecognizer(mm_per_px=4.0)
     got = [e.kind for i, t, evs in stream([(1, 0, path)]) for e in rec.update(i, t, evs)]
     assert got[0] == "drag_start"
     with pytest.raises(ConfigError, match="mm_per_px"):

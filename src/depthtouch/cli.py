@@ -159,6 +159,9 @@ def _add_eval(sub: argparse._SubParsersAction) -> None:
                    help="keep the suite's recordings in .cache/depthtouch/suite (or "
                         "$DEPTHTOUCH_CACHE) and reuse them")
     p.add_argument("--json", action="store_true", help="print the metrics as JSON")
+    p.add_argument("--gestures", action="store_true",
+                   help="gesture precision and recall per kind (tap, long press, drag) instead; "
+                        "without a recording: on the simulated presses, taps and drags scenes")
 
     def run(a: argparse.Namespace) -> int:
         import json
@@ -167,6 +170,12 @@ def _add_eval(sub: argparse._SubParsersAction) -> None:
         from .evaluation.suite import cache_root, eval_recording_command, eval_suite_command
 
         cfg = _load_config(a.config)
+        if a.gestures:
+            from .evaluation.gestures import gestures_output
+
+            print(gestures_output(a.recording, a.truth, events_path=a.events, config=cfg,
+                                  as_json=a.json, progress=None if a.json else _print_case))
+            return 0
         if a.suite:
             if a.recording or a.truth or a.events:
                 raise ConfigError("give either --suite or a recording with --truth, not both")
