@@ -122,6 +122,9 @@ def _add_serve(sub: argparse._SubParsersAction) -> None:
                    help="play recordings at their own pace (default) or as fast as possible")
     p.add_argument("--loop", action=argparse.BooleanOptionalAction, default=True,
                    help="start a finished recording again (default) or stop")
+    p.add_argument("--allow-origin", action="append", default=[], metavar="ORIGIN",
+                   help="also accept WebSocket clients from this browser origin, e.g. "
+                        "http://localhost:5173 (repeatable; see docs/websocket.md)")
 
     def run(a: argparse.Namespace) -> int:
         try:
@@ -136,10 +139,27 @@ def _add_serve(sub: argparse._SubParsersAction) -> None:
             a.source, host=a.host, port=a.port, config_path=a.config,
             calibration_path=a.calibration, calibration_out=a.calibration_out,
             realtime=a.realtime, loop=a.loop, surface_frames=a.surface_frames,
+            allowed_origins=_origins(a.allow_origin),
         )
         return 0
 
     p.set_defaults(func=run, stops_cleanly=True)
+
+
+def _origins(values: list[str]) -> list[str]:
+    """``--allow-origin`` values checked as ``scheme://host[:port]`` (what browsers send)."""
+    from urllib.parse import urlsplit
+
+    from .errors import ConfigError
+
+    out = []
+    for v in values:
+        u = urlsplit(v.strip())
+        if u.scheme not in ("http", "https") or not u.hostname or u.path not in ("", "/"):
+            raise ConfigError(f"--allow-origin {v!r} is not an origin; give e.g. "
+                              "http://localhost:5173 (scheme, host, optional port, no path)")
+        out.append(v.strip().rstrip("/"))
+    return out
 
 
 # --- eval ---------------------------------------------------------------------------------------

@@ -12,7 +12,7 @@ from __future__ import annotations
 import signal
 import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -169,11 +169,14 @@ def run_serve(
     loop: bool = True,
     surface_frames: int | None = None,
     announce: Callable[[str], None] = print,
+    allowed_origins: Sequence[str] = (),
 ) -> LoopStats:
     """Serve the page for a source until Ctrl-C, or until a recording ends with ``loop=False``.
 
     Live cameras (``realsense``, ``openni``) are never paced: they deliver frames in real time.
     Errors (bad source, port taken, bad calibration file) raise DepthTouchError subclasses.
+    allowed_origins: browser origins besides the page's own allowed on the WebSocket
+    (``serve --allow-origin``), e.g. ``http://localhost:5173``.
     """
     from ..config import PipelineConfig, load_config
     from ..pipeline import Pipeline
@@ -203,7 +206,7 @@ def run_serve(
     try:
         pipeline = Pipeline(config, surface_frames=surface_frames)
         server = WebServer(host, port, calibration=calibration, calibration_out=out,
-                           source_name=name)
+                           source_name=name, allowed_origins=allowed_origins)
         server.start()
     except BaseException:
         opened[0].close()
