@@ -89,8 +89,8 @@ DRAG = line(20)
         ("tap", [(1, 0, still(5))], ["tap"]),
         ("tap with 1 px jitter", [(1, 0, still(5, jitter_px=1.0, seed=4))], ["tap"]),
         # no gap between tap and long press: every press is one of them
-        ("lifted just before the long-press time", [(1, 0, still(14))], ["tap"]),
-        ("lifted on the frame it reaches the long-press time", [(1, 0, still(15))],
+        ("lifted just before the long-press time", [(1, 0, still(20))], ["tap"]),
+        ("lifted on the frame it reaches the long-press time", [(1, 0, still(21))],
          ["long_press"]),
         ("long press", [(1, 0, still(30))], ["long_press"]),
         ("double tap", [(1, 0, still(5)), (2, 8, still(5))], ["tap", "tap", "double_tap"]),
@@ -123,14 +123,14 @@ def test_tap_fields():
 
 def test_long_press_fires_once_while_down():
     (lp,) = run(stream([(1, 0, still(40))]))
-    assert lp.frame == 15  # 0.5 s after the down at 30 fps
-    assert lp.duration_s == pytest.approx(0.5)
+    assert lp.frame == 21  # 0.7 s after the down at 30 fps
+    assert lp.duration_s == pytest.approx(0.7)
 
 
-@pytest.mark.parametrize("n_frames", range(1, 40))
+@pytest.mark.parametrize("n_frames", range(1, 45))
 def test_every_still_press_is_a_tap_or_a_long_press(n_frames):
     got = kinds(run(stream([(1, 0, still(n_frames, jitter_px=1.0, seed=n_frames))])))
-    assert got == (["tap"] if n_frames < 15 else ["long_press"])
+    assert got == (["tap"] if n_frames < 21 else ["long_press"])
 
 
 def test_slop_in_mm_with_a_known_scale():

@@ -12,8 +12,9 @@ Rules (thresholds in :class:`GestureConfig`):
 - Every single-finger press is some gesture (the platforms' convention): lifted before
   ``long_press_s`` it is a ``tap``, held past it a ``long_press``, moved beyond the slop a drag.
   The defaults leave no gap between them (``tap_max_s`` = ``long_press_s``, one slop for all
-  three); ``long_press_s`` = 0.5 s as reported is about 0.45 s of contact: a touch is reported
-  ~0.02 s after it lands and ~0.075 s (2-3 frames) after it lifts.
+  three); ``long_press_s`` = 0.7 s as reported is about 0.65 s of contact (a touch is reported
+  ~0.02 s after it lands and ~0.075 s, 2-3 frames, after it lifts): longer than a phone's 0.5 s,
+  because a tap on a tabletop lasts 0.3-0.6 s in contact (the simulator's taps scene).
 - ``tap``: a single touch lifted within ``tap_max_s`` that moved at most ``tap_max_move_px``.
   ``double_tap`` follows the second of two taps (down within ``double_tap_gap_s`` of the first
   one's up, within ``double_tap_max_dist_px``); the second ``tap`` is still reported first, so a
@@ -62,12 +63,12 @@ def _range(name: str, value: float, lo: float, hi: float, *, lo_open: bool = Fal
 class GestureConfig:
     """Gesture thresholds. Distances are pixels of ``space`` (depth image or screen).
 
-    tap_max_s: longest contact that is a tap, seconds (default 0.5 = long_press_s, (0, 5]).
+    tap_max_s: longest contact that is a tap, seconds (default 0.7 = long_press_s, (0, 5]).
     tap_max_move_px: farthest a tap may move from its down point (default 10, [0, 1000]).
     double_tap_gap_s: longest time from a tap's up to the next tap's down (default 0.3, (0, 5]).
     double_tap_max_dist_px: farthest apart the two taps may be (default 20, [0, 1000]).
-    long_press_s: hold time of a long press as the sensor reports it, seconds (default 0.5:
-        ~0.45 s of contact plus the sensor's net lift latency, range (0, 30]).
+    long_press_s: hold time of a long press as the sensor reports it, seconds (default 0.7:
+        ~0.65 s of contact plus the sensor's net lift latency, range (0, 30]).
     long_press_max_move_px: farthest a long press may move (default 10, [0, 1000]).
     drag_min_move_px: distance from the down point that starts a drag (default 10, (0, 1000]).
     pinch_min_change: relative distance change that starts a pinch (default 0.08, (0, 10]).
@@ -84,11 +85,11 @@ class GestureConfig:
     space: "depth" (event x, y) or "screen" (event extra sx, sy, needs a calibration).
     """
 
-    tap_max_s: float = 0.5
+    tap_max_s: float = 0.7
     tap_max_move_px: float = 10.0
     double_tap_gap_s: float = 0.3
     double_tap_max_dist_px: float = 20.0
-    long_press_s: float = 0.5
+    long_press_s: float = 0.7
     long_press_max_move_px: float = 10.0
     drag_min_move_px: float = 10.0
     pinch_min_change: float = 0.08
