@@ -179,7 +179,7 @@ def replay(
                 bar.advance()
         if bar is not None:
             bar.close()
-        if pipeline.surface is None:
+        if pipeline.surface is None and not stopping.requested():  # a stop is no short file
             raise SourceError(
                 f"{recording}: only {pipeline.stats.frames} frames, fewer than the surface "
                 "learning needs; record a longer empty start or give --surface-frames / --surface"
