@@ -11,11 +11,10 @@ the last empty TUIO ``alive`` sent, sockets closed, exit 0.
 from __future__ import annotations
 
 import argparse
-import signal
 import sys
 from collections.abc import Callable, Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 from .errors import DepthTouchError
 
@@ -139,27 +138,11 @@ def _add_serve(sub: argparse._SubParsersAction) -> None:
             a.source, host=a.host, port=a.port, config_path=a.config,
             calibration_path=a.calibration, calibration_out=a.calibration_out,
             realtime=a.realtime, loop=a.loop, surface_frames=a.surface_frames,
-            allowed_origins=_origins(a.allow_origin),
+            allowed_origins=a.allow_origin,
         )
         return 0
 
     p.set_defaults(func=run, stops_cleanly=True)
-
-
-def _origins(values: list[str]) -> list[str]:
-    """``--allow-origin`` values checked as ``scheme://host[:port]`` (what browsers send)."""
-    from urllib.parse import urlsplit
-
-    from .errors import ConfigError
-
-    out = []
-    for v in values:
-        u = urlsplit(v.strip())
-        if u.scheme not in ("http", "https") or not u.hostname or u.path not in ("", "/"):
-            raise ConfigError(f"--allow-origin {v!r} is not an origin; give e.g. "
-                              "http://localhost:5173 (scheme, host, optional port, no path)")
-        out.append(v.strip().rstrip("/"))
-    return out
 
 
 # --- eval ---------------------------------------------------------------------------------------
@@ -518,7 +501,7 @@ def main(argv: Sequence[str] | None = None) -> int:
 
     clean_stop = bool(getattr(args, "stops_cleanly", False))
     stopping.reset()
-    old = _stop_on_signals() if clean_stop else {}
+    old = stopping.stop_on_signals() if clean_stop else {}
     try:
         rc = int(args.func(args) or 0)
         if clean_stop and stopping.requested():
@@ -528,7 +511,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"depthtouch: error: {e}", file=sys.stderr)
         return 2
     except (KeyboardInterrupt, SystemError) as e:
-        if not _interrupted(e):
+        if not stopping.interrupted(e):
             raise
         if clean_stop:
             print("depthtouch: stopped", file=sys.stderr)
@@ -538,45 +521,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     except BrokenPipeError:
         return 0
     finally:
-        for signum, handler in old.items():
-            signal.signal(signum, handler)
-
-
-_STOP_SIGNALS = ("SIGTERM", "SIGHUP", "SIGINT")
-
-
-def _stop_on_signals() -> dict[int, Any]:
-    """SIGTERM, SIGHUP and Ctrl-C stop the command: a loop that listens (see
-    :mod:`depthtouch.stopping`) ends at its next frame; otherwise, or at a second signal,
-    KeyboardInterrupt is raised and the command's Ctrl-C cleanup runs. Returns the handlers
-    replaced."""
-    import threading
-
-    from . import stopping
-
-    if threading.current_thread() is not threading.main_thread():
-        return {}
-    nums = [getattr(signal, n) for n in _STOP_SIGNALS if hasattr(signal, n)]
-
-    def stop(signum: int, frame: object) -> None:
-        again = stopping.requested()
-        if stopping.request() and not again:
-            return
-        for n in nums:  # the cleanup that follows must not be cut short by a third signal
-            signal.signal(n, signal.SIG_IGN)
-        raise KeyboardInterrupt
-
-    return {n: signal.signal(n, stop) for n in nums}
-
-
-def _interrupted(e: BaseException) -> bool:
-    """A KeyboardInterrupt that a compiled kernel's dispatch turned into a SystemError."""
-    seen: BaseException | None = e
-    while seen is not None:
-        if isinstance(seen, KeyboardInterrupt):
-            return True
-        seen = seen.__cause__ or seen.__context__
-    return False
+        stopping.restore(old)
 
 
 if __name__ == "__main__":  # pragma: no cover

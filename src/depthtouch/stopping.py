@@ -11,8 +11,10 @@ its outputs as at the end of a recording. Without a listener the handler raises 
 from __future__ import annotations
 
 import contextlib
+import signal
 import threading
 from collections.abc import Callable, Iterator
+from typing import Any
 
 _requested = threading.Event()
 _listeners: list[Callable[[], None]] = []
@@ -48,3 +50,41 @@ def listen(callback: Callable[[], None] | None = None) -> Iterator[None]:
         yield
     finally:
         _listeners.remove(cb)
+
+
+STOP_SIGNALS = ("SIGTERM", "SIGHUP", "SIGINT")
+
+
+def stop_on_signals() -> dict[int, Any]:
+    """SIGTERM, SIGHUP and Ctrl-C stop the command: a loop that listens ends at its next frame;
+    otherwise, or at a second signal, KeyboardInterrupt is raised and the command's Ctrl-C
+    cleanup runs. Returns the handlers replaced (for :func:`restore`); main thread only."""
+    if threading.current_thread() is not threading.main_thread():
+        return {}
+    nums = [getattr(signal, n) for n in STOP_SIGNALS if hasattr(signal, n)]
+
+    def stop(signum: int, frame: object) -> None:
+        again = requested()
+        if request() and not again:
+            return
+        for n in nums:  # the cleanup that follows must not be cut short by a third signal
+            signal.signal(n, signal.SIG_IGN)
+        raise KeyboardInterrupt
+
+    return {n: signal.signal(n, stop) for n in nums}
+
+
+def restore(handlers: dict[int, Any]) -> None:
+    """Put back the handlers :func:`stop_on_signals` replaced."""
+    for signum, handler in handlers.items():
+        signal.signal(signum, handler)
+
+
+def interrupted(e: BaseException) -> bool:
+    """A KeyboardInterrupt, or one that a compiled kernel's dispatch turned into a SystemError."""
+    seen: BaseException | None = e
+    while seen is not None:
+        if isinstance(seen, KeyboardInterrupt):
+            return True
+        seen = seen.__cause__ or seen.__context__
+    return False

@@ -149,3 +149,9 @@ def test_control_messages_validate():
     assert (touch["sx"], touch["sy"]) == (960.0, 540.0)
     assert (touch["nx"], touch["ny"]) == (0.5, 0.5)  # of the calibrated screen
     check({**server._hello(), "height": False})
+
+
+@pytest.mark.parametrize("bad", ["localhost:5173", "http://localhost:5173/app", "ftp://x", ""])
+def test_allow_origin_must_be_an_origin(cli, bad):
+    r = cli("serve", "--source", "sim:taps", "--port", "0", "--allow-origin", bad)
+    assert r.rc == 2 and "--allow-origin" in r.err and len(r.err_lines) == 1

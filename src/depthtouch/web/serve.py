@@ -182,6 +182,7 @@ def run_serve(
     from ..pipeline import Pipeline
     from ..sources import open_source
 
+    allowed_origins = check_origins(allowed_origins)
     config = load_config(config_path) if config_path else PipelineConfig()
     calibration = None
     if calibration_path:
@@ -232,6 +233,21 @@ def run_serve(
 
 
 _LIVE_SOURCES = ("realsense", "openni")
+
+
+def check_origins(values: Sequence[str]) -> list[str]:
+    """``--allow-origin`` values as browsers send them (``scheme://host[:port]``); OutputError
+    (one line) for anything else."""
+    from urllib.parse import urlsplit
+
+    out = []
+    for v in values:
+        u = urlsplit(v.strip())
+        if u.scheme not in ("http", "https") or not u.hostname or u.path not in ("", "/"):
+            raise OutputError(f"--allow-origin {v!r} is not an origin; give e.g. "
+                              "http://localhost:5173 (scheme, host, optional port, no path)")
+        out.append(v.strip().rstrip("/"))
+    return out
 
 
 def _interrupt(signum: int, frame: Any) -> None:
