@@ -176,7 +176,7 @@ def main(argv: list[str] | None = None) -> int:
         lines.append(f"| {w}x{h} | {n} | {r['found'][0]:.0f} | " + " | ".join(cells) + " |")
     from replay_bench import measure, section
 
-    lines += [""] + _analysis(rows) + section(measure()) + _latency_sections()
+    lines += [""] + _analysis(rows) + section(measure()) + _latency_sections() + _cold_start_section()
     Path(a.out).parent.mkdir(parents=True, exist_ok=True)
     Path(a.out).write_text("\n".join(lines) + "\n", encoding="utf-8")
     print(f"wrote {a.out}")
@@ -238,6 +238,7 @@ def _tuio_latency(n: int = 300) -> dict[str, float]:
     send_ms, recv_ms = [], []
     img = np.zeros((480, 640), np.uint16)
     with TuioSink("127.0.0.1", port) as sink:
+        rx.recv(65536)  # the empty alive (fseq -1) sent when the sink opens
         for i in range(n):
             f = Frame(img, i / 60, i, 0.001, None)
             evs = [TouchEvent(i, i / 60, k + 1, "down" if i == 0 else "move",
@@ -276,6 +277,42 @@ def _latency_sections() -> list[str]:
         "",
         f"Time spent in the sink's `send` on the pipeline thread: TUIO {t['send_median_ms']:.3f} ms, "
         f"WebSocket {w['publish_median_ms']:.3f} ms (median).",
+        "",
+    ]
+
+
+def _start_s(cache_dir: str) -> float:
+    """Wall time of a fresh process that imports depthtouch and builds a Pipeline."""
+    import os
+    import subprocess
+    import sys
+
+    env = dict(os.environ, NUMBA_CACHE_DIR=cache_dir)
+    t0 = time.perf_counter()
+    subprocess.run([sys.executable, "-c", "from depthtouch.pipeline import Pipeline; Pipeline()"],
+                   env=env, check=True, capture_output=True)
+    return time.perf_counter() - t0
+
+
+def _cold_start_section() -> list[str]:
+    """First run after installing (an empty numba cache) and the next run (cache warm)."""
+    import tempfile
+
+    with tempfile.TemporaryDirectory(prefix="depthtouch-numba-") as d:
+        cold = _start_s(d)
+        warm = _start_s(d)
+    print(f"start: cold cache {cold:.1f} s, warm {warm:.1f} s", flush=True)
+    return [
+        "## Start-up",
+        "",
+        "A fresh process importing depthtouch and building a `Pipeline` (kernels compiled or "
+        "loaded), with an empty `NUMBA_CACHE_DIR` (the first run after installing; it prints "
+        "\"compiling the touch kernels once\") and then with that cache filled:",
+        "",
+        "| numba cache | start s |",
+        "|---|---|",
+        f"| cold | {cold:.1f} |",
+        f"| warm | {warm:.1f} |",
         "",
     ]
 

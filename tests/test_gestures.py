@@ -89,7 +89,10 @@ DRAG = line(20)
     [
         ("tap", [(1, 0, still(5))], ["tap"]),
         ("tap with 1 px jitter", [(1, 0, still(5, jitter_px=1.0, seed=4))], ["tap"]),
-        ("held too long for a tap", [(1, 0, still(15))], []),
+        # no gap between tap and long press: every press is one of them
+        ("lifted just before the long-press time", [(1, 0, still(20))], ["tap"]),
+        ("lifted on the frame it reaches the long-press time", [(1, 0, still(21))],
+         ["long_press"]),
         ("long press", [(1, 0, still(30))], ["long_press"]),
         ("double tap", [(1, 0, still(5)), (2, 8, still(5))], ["tap", "tap", "double_tap"]),
         ("triple tap", [(1, 0, still(4)), (2, 7, still(4)), (3, 14, still(4))],
@@ -121,8 +124,25 @@ def test_tap_fields():
 
 def test_long_press_fires_once_while_down():
     (lp,) = run(stream([(1, 0, still(40))]))
-    assert lp.frame == 18  # 0.6 s after the down at 30 fps
-    assert lp.duration_s == pytest.approx(0.6)
+    assert lp.frame == 21  # 0.7 s after the down at 30 fps
+    assert lp.duration_s == pytest.approx(0.7)
+
+
+@pytest.mark.parametrize("n_frames", range(1, 45))
+def test_every_still_press_is_a_tap_or_a_long_press(n_frames):
+    got = kinds(run(stream([(1, 0, still(n_frames, jitter_px=1.0, seed=n_frames))])))
+    assert got == (["tap"] if n_frames < 21 else ["long_press"])
+
+
+def test_slop_in_mm_with_a_known_scale():
+    # 4 mm per pixel: the 25 mm slop is 6.25 px; a press wandering 8 px is a drag
+    path = [(200.0 + min(k, 8), 150.0) for k in range(12)]
+    assert kinds(run(stream([(1, 0, path)])))[0] == "tap"  # px thresholds: 10 px
+    rec = GestureRecognizer(mm_per_px=4.0)
+    got = [e.kind for i, t, evs in stream([(1, 0, path)]) for e in rec.update(i, t, evs)]
+    assert got[0] == "drag_start"
+    with pytest.raises(ConfigError, match="mm_per_px"):
+        GestureRecognizer(mm_per_px=0.0)
 
 
 def test_drag_offsets_add_up():

@@ -2,7 +2,10 @@
 
 Each command has its own ``_add_<name>`` function that declares its arguments and sets
 ``func``; :data:`_COMMANDS` lists them. A :class:`DepthTouchError` (a user's mistake) becomes one
-line on stderr and exit code 2; Ctrl-C exits 130 after the command's own cleanup.
+line on stderr and exit code 2; Ctrl-C exits 130 after the command's own cleanup. The streaming
+commands (``replay``, ``run``, ``serve``) take SIGTERM and SIGHUP (a service manager, a closed
+terminal) as Ctrl-C, and a stop by any of the three is their normal end: the events file is kept,
+the last empty TUIO ``alive`` sent, sockets closed, exit 0.
 """
 
 from __future__ import annotations
@@ -82,7 +85,7 @@ def _add_replay(sub: argparse._SubParsersAction) -> None:
             print(summary.describe())
         return 0
 
-    p.set_defaults(func=run)
+    p.set_defaults(func=run, stops_cleanly=True)
 
 
 # --- bench-filters ------------------------------------------------------------------------------
@@ -128,6 +131,9 @@ def _add_serve(sub: argparse._SubParsersAction) -> None:
                    help="play recordings at their own pace (default) or as fast as possible")
     p.add_argument("--loop", action=argparse.BooleanOptionalAction, default=True,
                    help="start a finished recording again (default) or stop")
+    p.add_argument("--allow-origin", action="append", default=[], metavar="ORIGIN",
+                   help="also accept WebSocket clients from this browser origin, e.g. "
+                        "http://localhost:5173 (repeatable; see docs/websocket.md)")
 
     def run(a: argparse.Namespace) -> int:
         try:
@@ -142,10 +148,11 @@ def _add_serve(sub: argparse._SubParsersAction) -> None:
             a.source, host=a.host, port=a.port, config_path=a.config,
             calibration_path=a.calibration, calibration_out=a.calibration_out,
             realtime=a.realtime, loop=a.loop, surface_frames=a.surface_frames,
+            allowed_origins=a.allow_origin,
         )
         return 0
 
-    p.set_defaults(func=run)
+    p.set_defaults(func=run, stops_cleanly=True)
 
 
 # --- eval ---------------------------------------------------------------------------------------
@@ -167,6 +174,9 @@ def _add_eval(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--half", choices=("tune", "held-out", "all"),
                    help="with --suite: the tune or held-out half (or all), both side by side")
     p.add_argument("--json", action="store_true", help="print the metrics as JSON")
+    p.add_argument("--gestures", action="store_true",
+                   help="gesture precision and recall per kind (tap, long press, drag) instead; "
+                        "without a recording: on the simulated presses, taps and drags scenes")
 
     def run(a: argparse.Namespace) -> int:
         import json
@@ -183,6 +193,12 @@ def _add_eval(sub: argparse._SubParsersAction) -> None:
             return print_halves(a.suite, a.half, subset=a.subset, config=cfg,
                                 workers=a.workers, cache=cache_root() if a.cache else None,
                                 as_json=a.json, progress=None if a.json else _print_case)
+        if a.gestures:
+            from .evaluation.gestures import gestures_output
+
+            print(gestures_output(a.recording, a.truth, events_path=a.events, config=cfg,
+                                  as_json=a.json, progress=None if a.json else _print_case))
+            return 0
         if a.suite:
             if a.recording or a.truth or a.events:
                 raise ConfigError("give either --suite or a recording with --truth, not both")
@@ -419,7 +435,7 @@ def _add_run(sub: argparse._SubParsersAction) -> None:
             print(result.describe())
         return 0
 
-    p.set_defaults(func=run)
+    p.set_defaults(func=run, stops_cleanly=True)
 
 
 def _add_record(sub: argparse._SubParsersAction) -> None:
@@ -525,45 +541,31 @@ def main(argv: Sequence[str] | None = None) -> int:
     if getattr(args, "func", None) is None:
         parser.print_help()
         return 2
-    stopped: list[int] = []
-    restore = _stop_on_signals(stopped)
+    from . import stopping
+
+    clean_stop = bool(getattr(args, "stops_cleanly", False))
+    stopping.reset()
+    old = stopping.stop_on_signals() if clean_stop else {}
     try:
-        return int(args.func(args) or 0)
+        rc = int(args.func(args) or 0)
+        if clean_stop and stopping.requested():
+            print("depthtouch: stopped", file=sys.stderr)
+        return rc
     except DepthTouchError as e:
         print(f"depthtouch: error: {e}", file=sys.stderr)
         return 2
-    except KeyboardInterrupt:
-        if stopped:  # a service manager's stop: the command's outputs were closed cleanly
+    except (KeyboardInterrupt, SystemError) as e:
+        if not stopping.interrupted(e):
+            raise
+        if clean_stop:
+            print("depthtouch: stopped", file=sys.stderr)
             return 0
         print("depthtouch: interrupted", file=sys.stderr)
         return 130
     except BrokenPipeError:
         return 0
     finally:
-        restore()
-
-
-def _stop_on_signals(stopped: list[int]) -> Callable[[], None]:
-    """SIGTERM and SIGHUP (systemd, docker stop, a closed terminal) end a command the way Ctrl-C
-    does: the loop ends the touches still down, the events file is kept, TUIO sends its final
-    empty ``alive``, sockets close. Returns a function that restores the previous handlers."""
-    import signal
-    import threading
-
-    if threading.current_thread() is not threading.main_thread():
-        return lambda: None
-
-    def stop(signum: int, frame: object) -> None:
-        stopped.append(signum)
-        raise KeyboardInterrupt
-
-    sigs = [signal.SIGTERM] + ([signal.SIGHUP] if hasattr(signal, "SIGHUP") else [])
-    old = {s: signal.signal(s, stop) for s in sigs}
-    def restore() -> None:
-        for s, h in old.items():
-            signal.signal(s, h)
-
-    return restore
+        stopping.restore(old)
 
 
 if __name__ == "__main__":  # pragma: no cover

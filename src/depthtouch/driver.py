@@ -24,6 +24,7 @@ from typing import Protocol
 
 import numpy as np
 
+from . import stopping
 from .errors import ConfigError, DepthTouchError
 from .outputs.base import Sink
 from .types import Frame, FrameResult, StreamGap
@@ -115,7 +116,9 @@ def drive(
         warned about once and counted, never raised (a recording: they are raised).
     flush_interval_s: call ``flush()`` of the sinks that have one this often (clock time).
     stats: counts into this object (the caller keeps them if Ctrl-C ends the drive).
-    On Ctrl-C (KeyboardInterrupt) the touches still down are ended, then it is raised again.
+    A stop request (SIGTERM, SIGHUP, Ctrl-C through :mod:`depthtouch.stopping`) ends the loop at
+    the next frame like ``stop``; a KeyboardInterrupt raised inside it ends the touches still
+    down, then is raised again.
     The sinks are not closed here: their owner closes them.
     """
     stats = stats if stats is not None else DriveStats()
@@ -151,6 +154,8 @@ def drive(
 
     frames = iter(source.frames())
     interrupted = False
+    listening = stopping.listen(stop.set)  # SIGTERM, SIGHUP, Ctrl-C end the loop between frames
+    listening.__enter__()
     try:
         for item in frames:
             if stop.is_set():
@@ -183,6 +188,7 @@ def drive(
     except KeyboardInterrupt:
         interrupted = stats.interrupted = True
     finally:
+        listening.__exit__(None, None, None)
         close = getattr(frames, "close", None)
         if close is not None:
             with contextlib.suppress(Exception):

@@ -9,12 +9,21 @@ Rules (thresholds in :class:`GestureConfig`):
 
 - A touch that is ever on the surface together with another one is *multi-finger*: it makes no
   tap, long press or drag (a drag in progress ends when a second finger lands).
+- Every single-finger press is some gesture (the platforms' convention): lifted before
+  ``long_press_s`` it is a ``tap``, held past it a ``long_press``, moved beyond the slop a drag.
+  The defaults leave no gap between them (``tap_max_s`` = ``long_press_s``, one slop for all
+  three); ``long_press_s`` = 0.7 s as reported is about 0.65 s of contact (a touch is reported
+  ~0.02 s after it lands and ~0.075 s, 2-3 frames, after it lifts): longer than a phone's 0.5 s,
+  because a tap on a tabletop lasts 0.3-0.6 s in contact (the simulator's taps scene).
 - ``tap``: a single touch lifted within ``tap_max_s`` that moved at most ``tap_max_move_px``.
   ``double_tap`` follows the second of two taps (down within ``double_tap_gap_s`` of the first
   one's up, within ``double_tap_max_dist_px``); the second ``tap`` is still reported first, so a
   single tap is never delayed (as DOM ``click`` / ``dblclick``).
 - ``long_press``: a single touch held ``long_press_s`` within ``long_press_max_move_px``; once,
-  while it is still down; its lift then makes no tap.
+  while it is still down (or on its lift, when it lifts on the frame it reaches
+  ``long_press_s``); its lift then makes no tap.
+- Distances: with a known scale (``mm_per_px`` given to the recognizer, depth space), the three
+  movement thresholds are ``slop_mm`` converted to pixels; otherwise the ``*_px`` fields.
 - ``drag_start`` when a single touch has moved more than ``drag_min_move_px`` from its down point
   (``dx``, ``dy``: offset from the down point), ``drag`` on each later frame it moves (``dx``,
   ``dy``: motion since the previous drag event), ``drag_end`` when it lifts (``dx``, ``dy``: total
@@ -52,12 +61,13 @@ def _range(name: str, value: float, lo: float, hi: float, *, lo_open: bool = Fal
 class GestureConfig:
     """Gesture thresholds. Distances are pixels of ``space`` (depth image or screen).
 
-    tap_max_s: longest contact that is a tap, seconds (default 0.3, range (0, 5]).
-    tap_max_move_px: farthest a tap may move from its down point (default 8, [0, 1000]).
+    tap_max_s: longest contact that is a tap, seconds (default 0.7 = long_press_s, (0, 5]).
+    tap_max_move_px: farthest a tap may move from its down point (default 10, [0, 1000]).
     double_tap_gap_s: longest time from a tap's up to the next tap's down (default 0.3, (0, 5]).
     double_tap_max_dist_px: farthest apart the two taps may be (default 20, [0, 1000]).
-    long_press_s: hold time of a long press, seconds (default 0.6, (0, 30]).
-    long_press_max_move_px: farthest a long press may move (default 8, [0, 1000]).
+    long_press_s: hold time of a long press as the sensor reports it, seconds (default 0.7:
+        ~0.65 s of contact plus the sensor's net lift latency, range (0, 30]).
+    long_press_max_move_px: farthest a long press may move (default 10, [0, 1000]).
     drag_min_move_px: distance from the down point that starts a drag (default 10, (0, 1000]).
     pinch_min_change: relative distance change that starts a pinch (default 0.08, (0, 10]).
     pinch_step: scale change between two pinch events (default 0.01, (0, 10]).
@@ -66,21 +76,26 @@ class GestureConfig:
     pair_min_s: two touches must be down together this long before a pinch or rotate can start,
         so that a tracker's id switch (one touch replaced by another) is no pinch (default 0.1,
         range [0, 5]).
+    slop_mm: movement that makes a press a drag (and no tap or long press), mm, used instead of
+        the three ``*_move_px`` thresholds when the recognizer knows ``mm_per_px``
+        (default 25, range (0, 200]: the reported position of a still press wanders up to
+        ~21 mm with a simulated D435 at 1 m, under 3 mm with a Kinect v2).
     space: "depth" (event x, y) or "screen" (event extra sx, sy, needs a calibration).
     """
 
-    tap_max_s: float = 0.3
-    tap_max_move_px: float = 8.0
+    tap_max_s: float = 0.7
+    tap_max_move_px: float = 10.0
     double_tap_gap_s: float = 0.3
     double_tap_max_dist_px: float = 20.0
-    long_press_s: float = 0.6
-    long_press_max_move_px: float = 8.0
+    long_press_s: float = 0.7
+    long_press_max_move_px: float = 10.0
     drag_min_move_px: float = 10.0
     pinch_min_change: float = 0.08
     pinch_step: float = 0.01
     rotate_min_deg: float = 8.0
     rotate_step_deg: float = 1.0
     pair_min_s: float = 0.1
+    slop_mm: float = 25.0
     space: str = "depth"
 
     def validate(self) -> GestureConfig:
@@ -96,6 +111,7 @@ class GestureConfig:
         _range("rotate_min_deg", self.rotate_min_deg, 0.0, 180.0, lo_open=True)
         _range("rotate_step_deg", self.rotate_step_deg, 0.0, 180.0, lo_open=True)
         _range("pair_min_s", self.pair_min_s, 0.0, 5.0)
+        _range("slop_mm", self.slop_mm, 0.0, 200.0, lo_open=True)
         if self.space not in ("depth", "screen"):
             raise ConfigError(f"gestures.space = {self.space!r} is unknown; use depth or screen")
         return self
@@ -196,11 +212,21 @@ class GestureRecognizer:
 
     ``events`` are one frame's :class:`~depthtouch.types.TouchEvent` list; a live touch missing
     from a frame's events is treated as lifted at its last position. ``config`` is validated
-    here (ConfigError naming the allowed range).
+    here (ConfigError naming the allowed range). ``mm_per_px``: the depth image's scale on the
+    surface (e.g. ``Surface.mm_per_px()``), > 0; with it and ``space="depth"`` the movement
+    thresholds are ``config.slop_mm`` (default None: the ``*_move_px`` fields).
     """
 
-    def __init__(self, config: GestureConfig | None = None) -> None:
+    def __init__(self, config: GestureConfig | None = None,
+                 mm_per_px: float | None = None) -> None:
         self.config = (config if config is not None else GestureConfig()).validate()
+        if mm_per_px is not None and not (mm_per_px > 0 and math.isfinite(mm_per_px)):
+            raise ConfigError(f"mm_per_px = {mm_per_px!r} must be a positive number")
+        cfg = self.config
+        slop = cfg.slop_mm / mm_per_px if mm_per_px and cfg.space == "depth" else None
+        self._tap_move = slop if slop is not None else cfg.tap_max_move_px
+        self._long_move = slop if slop is not None else cfg.long_press_max_move_px
+        self._drag_move = slop if slop is not None else cfg.drag_min_move_px
         self._contacts: dict[int, _Contact] = {}
         self._pair: _Pair | None = None
         self._last_tap: _LastTap | None = None
@@ -290,13 +316,13 @@ class GestureRecognizer:
             if dx != 0.0 or dy != 0.0:
                 out.append(self._ev("drag", frame, t, [c.id], c.xy, dx=dx, dy=dy))
                 c.drag_xy = c.xy
-        elif c.max_move > cfg.drag_min_move_px:
+        elif c.max_move > self._drag_move:
             c.dragging = True
             c.drag_xy = c.xy
             out.append(self._ev("drag_start", frame, t, [c.id], c.xy,
                                 dx=c.xy[0] - c.start_xy[0], dy=c.xy[1] - c.start_xy[1]))
         if (not c.long_pressed and not c.dragging and t - c.start_t >= cfg.long_press_s
-                and c.max_move <= cfg.long_press_max_move_px):
+                and c.max_move <= self._long_move):
             c.long_pressed = True
             out.append(self._ev("long_press", frame, t, [c.id], c.xy,
                                 duration_s=t - c.start_t))
@@ -363,8 +389,13 @@ class GestureRecognizer:
             out.append(self._drag_end(c, frame, t))
             return out
         duration = t - c.start_t
-        too_long = duration > cfg.tap_max_s or c.max_move > cfg.tap_max_move_px
-        if c.multi or c.long_pressed or too_long:
+        if c.multi or c.long_pressed:
+            return out
+        if duration >= cfg.long_press_s and c.max_move <= self._long_move:
+            # reached the hold time on the frame it lifted: still a long press, not nothing
+            out.append(self._ev("long_press", frame, t, [c.id], c.xy, duration_s=duration))
+            return out
+        if duration > cfg.tap_max_s or c.max_move > self._tap_move:
             return out
         out.append(self._ev("tap", frame, t, [c.id], c.start_xy, duration_s=duration))
         last = self._last_tap

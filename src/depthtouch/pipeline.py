@@ -42,13 +42,13 @@ def _warm_up() -> None:
     global _warm
     if _warm:
         return
+    from . import firstrun, runs
     from .surface import adapt
     from .touch import handmap, regions, tipkernel
 
-    tipkernel.warm_up()
-    handmap.warm_up()
-    regions.warm_up()
-    adapt.warm_up()
+    # a cold numba cache (the first run after installing) takes ~20 s: firstrun says so
+    firstrun.warm_up((tipkernel.warm_up, handmap.warm_up, regions.warm_up, adapt.warm_up),
+                     kernels=(tipkernel._frame_points, runs.parts_of_runs))
     _warm = True
 
 

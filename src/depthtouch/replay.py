@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
+from . import stopping
 from .config import PipelineConfig
 from .driver import DriveStats, drive
 from .errors import ConfigError, SourceError
@@ -115,6 +116,7 @@ def replay(
                   on_result=bar, stats=stats)
         except KeyboardInterrupt:
             summary.interrupted = True
+        summary.interrupted |= stopping.requested()  # SIGTERM, SIGHUP, Ctrl-C: a clean stop
         if pipeline.learning and not summary.interrupted:
             raise SourceError(
                 f"{recording}: only {pipeline.stats.frames} frames, fewer than the surface "

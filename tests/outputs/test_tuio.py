@@ -76,8 +76,10 @@ def validate(dgram: bytes, max_bytes: int = MAX_PACKET_BYTES) -> dict:
 
 
 def validate_stream(dgrams: list[bytes]) -> list[dict]:
+    """Every datagram valid; fseq strictly increasing (except the resets, fseq -1)."""
     parts = [validate(d) for d in dgrams]
-    fseqs = [p["fseq"] for p in parts]
+    assert all(p["fseq"] > 0 or (p["fseq"] == -1 and p["alive"] == []) for p in parts)
+    fseqs = [p["fseq"] for p in parts if p["fseq"] > 0]
     assert all(b > a for a, b in zip(fseqs, fseqs[1:], strict=False)), fseqs
     return parts
 
@@ -177,7 +179,7 @@ def test_split_keeps_full_alive_and_every_set():
         ([TuioCursor(1, 0.5, -0.01)], {}, r"outside \[0, 1\]"),
         ([TuioCursor(1, 0.5, 0.5)], {"alive_ids": [2]}, "not in alive"),
         ([], {"alive_ids": [2, 2]}, "repeat"),
-        ([], {"fseq": -1}, "fseq"),
+        ([], {"fseq": -2}, "fseq"),
         ([], {"max_packet_bytes": 100}, "max_packet_bytes"),
         ([TuioCursor(1, 0.5, 0.5)], {"alive_ids": list(range(400))}, "no room|do not fit"),
     ],
@@ -263,7 +265,7 @@ def drain(sock: socket.socket, n: int) -> list[bytes]:
 def test_sink_stream_is_valid_tuio(receiver):
     port = receiver.getsockname()[1]
     rec = recording()
-    with TuioSink("127.0.0.1", port, source_name="dt") as sink:
+    with TuioSink("127.0.0.1", port, source_name="dt", clock=lambda: 0.0) as sink:
         assert isinstance(sink, EventSink)
         for frame, evs in rec:
             sink.send(result_of(frame, evs))
@@ -273,6 +275,10 @@ def test_sink_stream_is_valid_tuio(receiver):
     assert len(packets) == sent + 1
     parts = validate_stream(packets)
     assert all(p["source"] == "dt@127.0.0.1" for p in parts)
+    # the reference server's reset, an empty alive with fseq -1, when the sink opens and closes
+    assert (parts[0]["fseq"], parts[-1]["fseq"]) == (-1, -1)
+    assert parts[1]["fseq"] == 1  # the clock at 0 s: fseq from 1, session ids = touch ids
+    parts = parts[1:]
     # one bundle per frame with events (frames 15..60), alive follows down..up
     event_parts = parts[1:47]
     assert [p["alive"] for p in event_parts[:15]] == [[1]] * 15
@@ -303,9 +309,9 @@ def test_sink_uses_the_events_screen_coordinates(receiver):
            TouchEvent(0, 0.0, 5, "down", 10.0, 10.0),
            TouchEvent(0, 0.0, 6, "down", 900.0, -50.0)]  # off screen: clipped
     evs = apply_calibration(evs, cal)
-    with TuioSink("127.0.0.1", port, screen_wh=cal.screen_wh) as sink:
+    with TuioSink("127.0.0.1", port, screen_wh=cal.screen_wh, clock=lambda: 0.0) as sink:
         sink.send(result_of(frame, evs))
-    (p, _) = [validate(d) for d in drain(receiver, 2)]
+    (_, p, _) = [validate(d) for d in drain(receiver, 3)]
     assert p["sets"][4][:2] == pytest.approx((0.5, 0.5))
     assert p["sets"][5][:2] == pytest.approx((30 / 1920, 22.5 / 1080))
     assert p["sets"][6][:2] == (1.0, 0.0)
@@ -313,11 +319,11 @@ def test_sink_uses_the_events_screen_coordinates(receiver):
 
 def test_repeated_timestamp_does_not_divide_by_zero(receiver):
     port = receiver.getsockname()[1]
-    with TuioSink("127.0.0.1", port) as sink:
+    with TuioSink("127.0.0.1", port, clock=lambda: 0.0) as sink:
         sink.send(result_of(Frame(DEPTH, 1.0, 0), [TouchEvent(0, 1.0, 1, "down", 10.0, 10.0)]))
         sink.send(result_of(Frame(DEPTH, 1.1, 1), [TouchEvent(1, 1.1, 1, "move", 20.0, 10.0)]))
         sink.send(result_of(Frame(DEPTH, 1.1, 2), [TouchEvent(2, 1.1, 1, "move", 30.0, 10.0)]))
-    parts = validate_stream(drain(receiver, 4))
+    parts = validate_stream(drain(receiver, 5))[1:]
     vx2, vx3 = parts[1]["sets"][1][2], parts[2]["sets"][1][2]
     assert vx2 == pytest.approx(10 / 640 / 0.1, rel=1e-4) and vx3 == vx2
     assert parts[2]["sets"][1][0] == pytest.approx(30 / 640)
@@ -351,7 +357,7 @@ def test_third_party_client_sees_add_update_remove():
                               daemon=True)
     thread.start()
     try:
-        with TuioSink("127.0.0.1", port) as sink:
+        with TuioSink("127.0.0.1", port, clock=lambda: 0.0) as sink:
             for frame, evs in recording():
                 sink.send(result_of(frame, evs))
         pause = threading.Event()
@@ -419,7 +425,7 @@ def test_send_errors_never_raise(receiver, caplog, exc):
     for frame, evs in rec:
         sink.send(result_of(frame, evs))
     assert sink.errors == sink._sock.calls >= 20  # type: ignore[union-attr]
-    assert sink.packets_sent == 0
+    assert sink.packets_sent == 1  # the reset sent when the sink opened
     sink.close()
     real.close()  # type: ignore[union-attr]
     assert len([r for r in caplog.records if r.name == "depthtouch.outputs.tuio"]) == 1

@@ -281,7 +281,7 @@ def test_bad_arguments_raise_config_error(kwargs: dict[str, object], message: st
 def test_public_names() -> None:
     assert CAMERAS == ("kinect-v2", "realsense-d435", "kinect-v1")
     assert {"taps", "drags", "multitouch", "pinch", "cross", "hover", "distractors", "object",
-            "drift", "bump", "hold"} == set(SCENES)
+            "drift", "bump", "hold", "presses"} == set(SCENES)
 
 
 @pytest.mark.parametrize("camera", CAMERAS)

@@ -253,11 +253,11 @@ def test_static_routes_serve_only_own_files(
 
 # --- WebSocket ------------------------------------------------------------------------------------
 async def ws_session(port: int, origin: str | None, n_text: int,
-                     after_connect: Any = None) -> list[Any]:
+                     after_connect: Any = None, query: str = "") -> list[Any]:
     headers = {"Origin": origin} if origin is not None else {}
     out: list[Any] = []
     async with ClientSession() as session, session.ws_connect(
-        f"http://127.0.0.1:{port}/ws", headers=headers
+        f"http://127.0.0.1:{port}/ws{query}", headers=headers
     ) as ws:
         if after_connect is not None:
             await asyncio.get_running_loop().run_in_executor(None, after_connect)
@@ -331,14 +331,17 @@ def test_websocket_stream_hello_frames_and_height(server: WebServer) -> None:
         assert not server.publish_height(frame, height)  # rate-limited: same time
         server.inject([ev(6, 1, "up", 11.0, 21.0)])
 
-    msgs = asyncio.run(ws_session(server.port, None, 4, after_connect=publish))
+    msgs = asyncio.run(ws_session(server.port, None, 4, after_connect=publish,
+                                  query="?height=1"))
     texts = [m for m in msgs if isinstance(m, dict)]
     hello, meta, f5, f6 = texts
     assert hello["type"] == "hello" and hello["pad_wh"] == [960, 540]
+    assert hello["version"] == 1 and hello["height"] is True
     assert len(hello["targets"]) == 4 and hello["calibration"]["loaded"] is False
     assert meta == {"type": "meta", "resolution_wh": [40, 30]}
     assert f5["frame"] == 5 and [t["id"] for t in f5["touches"]] == [1, 2]
-    assert f5["touches"][1] == {"id": 2, "state": "move", "x": 30.5, "y": 40.25}
+    assert f5["touches"][1] == {"id": 2, "state": "move", "x": 30.5, "y": 40.25,
+                                "nx": 30.5 / 40, "ny": 1.0}  # clipped: y is below the image
     assert f6["touches"][0]["state"] == "up" and f6["status"]["touches"] == 1
     images = [m for m in msgs if isinstance(m, bytes)]
     assert len(images) == 1
@@ -356,7 +359,7 @@ def test_websocket_stream_hello_frames_and_height(server: WebServer) -> None:
 )
 def test_height_rate_limit(times: list[float], hz: float, expected: list[bool]) -> None:
     s = WebServer("127.0.0.1", 0, height_hz=hz)
-    s.broadcaster._n_clients = 1  # pretend a page is connected; no loop needed for the check
+    s.broadcaster._n_height = 1  # pretend a page asked for heights; no loop needed for the check
     got = []
     for t in times:
         f = Frame(np.zeros((4, 4), np.uint16), t, 0)

@@ -2,8 +2,10 @@
 
 Three layers, each testable alone:
 
-- :func:`frame_message` / :func:`encode_message`: pure encoding of one processed frame into the
-  JSON text message ``{"type": "frame", "frame", "t", "touches": [...], "status": {...}}``.
+- :func:`frame_message` / :func:`gesture_message` / :func:`encode_message`: pure encoding of one
+  processed frame into ``{"type": "frame", "frame", "t", "touches": [...], "status": {...}}``
+  and of a recognised gesture into ``{"type": "gesture", "kind", ...}`` (docs/websocket.md; the
+  JSON schemas are in ``depthtouch/web/protocol.schema.json``).
 - :class:`ClientQueue`: a per-client bounded queue that never blocks the producer; when full it
   drops the oldest item (the client skips frames) and counts what it dropped.
 - :class:`Broadcaster`: the client registry living in the server's asyncio loop. The pipeline
@@ -33,6 +35,7 @@ from typing import Any, Protocol
 
 import numpy as np
 
+from ..gestures import GestureEvent, GestureRecognizer
 from ..types import FrameResult, TouchEvent
 from .base import SinkBase
 
@@ -43,9 +46,27 @@ TEXT = "text"
 BINARY = "binary"
 
 
-def _touch_dict(ev: TouchEvent) -> dict[str, Any]:
+#: The protocol version in ``hello``; bumped when a message changes incompatibly.
+PROTOCOL_VERSION = 1
+_DRAG_PHASES = {"drag_start": "start", "drag": "move", "drag_end": "end"}
+
+
+def _touch_dict(ev: TouchEvent, unit_wh: tuple[float, float] | None = None) -> dict[str, Any]:
     d = ev.to_dict()
     del d["frame"], d["t"]
+    if unit_wh is not None:  # normalised [0, 1] of the screen (calibrated) or the depth image
+        x, y = (ev.extra["sx"], ev.extra["sy"]) if "sx" in ev.extra else (ev.x, ev.y)
+        d["nx"] = round(min(max(float(x) / unit_wh[0], 0.0), 1.0), 6)
+        d["ny"] = round(min(max(float(y) / unit_wh[1], 0.0), 1.0), 6)
+    return d
+
+
+def gesture_message(g: GestureEvent) -> dict[str, Any]:
+    """The JSON object sent for a recognised gesture: :meth:`GestureEvent.to_dict`, with the
+    three drag kinds as one ``drag`` kind and a ``phase`` (start, move, end)."""
+    d = g.to_dict()
+    if g.kind in _DRAG_PHASES:
+        d["kind"], d["phase"] = "drag", _DRAG_PHASES[g.kind]
     return d
 
 
@@ -54,18 +75,21 @@ def frame_message(
     t_s: float,
     events: Sequence[TouchEvent],
     status: Mapping[str, Any],
+    unit_wh: tuple[float, float] | None = None,
 ) -> dict[str, Any]:
     """The JSON object sent for one processed frame.
 
     touches: one entry per event of the frame (``id``, ``state``, ``x``, ``y`` in depth-image
-    pixels, then the optional fields such as ``sx``, ``sy``), in event order. A frame with no
-    touches still produces a message (it carries the status line).
+    pixels, then the optional fields such as ``sx``, ``sy`` in screen pixels), in event order;
+    with ``unit_wh`` (the screen size when events carry ``sx``, else the depth image's) also
+    ``nx``, ``ny`` normalised to [0, 1]. A frame with no touches still produces a message (it
+    carries the status line).
     """
     return {
         "type": "frame",
         "frame": int(frame_index),
         "t": round(float(t_s), 6),
-        "touches": [_touch_dict(ev) for ev in events],
+        "touches": [_touch_dict(ev, unit_wh) for ev in events],
         "status": dict(status),
     }
 
@@ -148,6 +172,7 @@ class _Client:
     abort: Callable[[], None] | None = None  # drops the connection without a close handshake
     task: asyncio.Task[None] | None = None
     sent: int = 0
+    height: bool = False  # asked for height-map images
 
 
 class Broadcaster:
@@ -173,13 +198,25 @@ class Broadcaster:
         self.latencies_ms: collections.deque[float] = collections.deque(maxlen=10_000)
         self.skipped = 0
         self.dropped_clients = 0
-        self._lock = threading.Lock()  # guards n_clients for readers in other threads
+        self._lock = threading.Lock()  # guards the counts for readers in other threads
         self._n_clients = 0
+        self._n_height = 0
 
     @property
     def n_clients(self) -> int:
         with self._lock:
             return self._n_clients
+
+    @property
+    def n_height_clients(self) -> int:
+        """Clients that asked for height-map images (binary messages go only to them)."""
+        with self._lock:
+            return self._n_height
+
+    def _count(self) -> None:
+        with self._lock:
+            self._n_clients = len(self._clients)
+            self._n_height = sum(c.height for c in self._clients.values())
 
     def bind(self, loop: asyncio.AbstractEventLoop) -> None:
         """Attach to the loop that runs the server; posts before this are ignored."""
@@ -196,16 +233,17 @@ class Broadcaster:
             loop.call_soon_threadsafe(self._fanout, kind, payload, t)
 
     # --- called in the loop ---------------------------------------------------------------------
-    def add(self, ws: WebSocketLike, abort: Callable[[], None] | None = None) -> _Client:
+    def add(self, ws: WebSocketLike, abort: Callable[[], None] | None = None,
+            height: bool = False) -> _Client:
         """Register a connected client and start its writer task.
 
         abort: closes the connection at once (the transport's ``abort``); used for clients that
         stopped reading, which could not complete a close handshake.
+        height: the client wants the binary height-map images (default False).
         """
-        client = _Client(ws, ClientQueue(self.queue_size), abort)
+        client = _Client(ws, ClientQueue(self.queue_size), abort, height=height)
         self._clients[id(ws)] = client
-        with self._lock:
-            self._n_clients = len(self._clients)
+        self._count()
         client.task = asyncio.get_running_loop().create_task(self._writer(client))
         return client
 
@@ -219,8 +257,14 @@ class Broadcaster:
 
     def _forget(self, client: _Client) -> None:
         self._clients.pop(id(client.ws), None)
-        with self._lock:
-            self._n_clients = len(self._clients)
+        self._count()
+
+    def subscribe(self, ws: WebSocketLike, height: bool) -> None:
+        """Start or stop sending height-map images to one client."""
+        client = self._clients.get(id(ws))
+        if client is not None:
+            client.height = bool(height)
+            self._count()
 
     def send_to(self, ws: WebSocketLike, kind: str, payload: str | bytes) -> None:
         """Queue a message for one client (e.g. the greeting)."""
@@ -234,6 +278,8 @@ class Broadcaster:
     def _fanout(self, kind: str, payload: str | bytes, t0: float) -> None:
         now = self._now()
         for client in list(self._clients.values()):
+            if kind == BINARY and not client.height:
+                continue
             self.skipped += client.queue.put(kind, payload, t0, now)
             since = client.queue.full_since_s
             if since is not None and now - since > self.drop_after_s:
@@ -302,7 +348,13 @@ class WebSocketSink(SinkBase):
     the pipeline's, on the events.
     fps_window: frames over which fps is measured from the frame timestamps (default 30).
 
-    :meth:`send` never blocks and never raises on a client problem.
+    screen_wh: the calibrated screen's size (px), to normalise ``sx``, ``sy``; None: positions
+    are normalised to the depth image.
+
+    Each frame's events also feed a :class:`~depthtouch.gestures.GestureRecognizer` (depth
+    pixels; its slop in mm once the result's surface knows its scale), whose gestures follow
+    the frame message as ``gesture`` messages. :meth:`send` never blocks and never raises on a
+    client problem.
     """
 
     def __init__(
@@ -318,11 +370,21 @@ class WebSocketSink(SinkBase):
         self.frames = 0
         self.on_resolution: Callable[[tuple[int, int]], None] | None = None
         self._resolution_wh: tuple[int, int] | None = None
+        self._gestures: GestureRecognizer | None = None
+        self._mm_per_px: float | None = None
+        self.screen_wh: tuple[int, int] | None = None
+        self.gestures_sent = 0
 
     def reset(self) -> None:
-        """Forget the fps history and the active touches (a new stream starts)."""
+        """Forget the fps history, the active touches and the gestures (a new stream starts)."""
         self._times.clear()
         self._active.clear()
+        self._gestures = None
+
+    def _recognizer(self) -> GestureRecognizer:
+        if self._gestures is None:
+            self._gestures = GestureRecognizer(mm_per_px=self._mm_per_px)
+        return self._gestures
 
     def send(self, result: FrameResult) -> None:
         t0 = time.perf_counter()
@@ -333,6 +395,8 @@ class WebSocketSink(SinkBase):
         elif result.learning:
             self._ms = None  # no touch path yet (a frame ending touches keeps the last figure)
         self._learning = result.learning
+        if self._mm_per_px is None and result.surface is not None:
+            self._mm_per_px = getattr(result.surface, "mm_per_px", None)
         wh = frame.resolution_wh
         if wh != self._resolution_wh:
             self._resolution_wh = wh
@@ -357,10 +421,23 @@ class WebSocketSink(SinkBase):
                 self._active.discard(ev.id)
             else:
                 self._active.add(ev.id)
-        text = encode_message(frame_message(frame_index, t_s, events, self.status()))
+        found = self._recognizer().update(frame_index, t_s, events) if (
+            events or self._active) else []
+        text = encode_message(frame_message(frame_index, t_s, events, self.status(),
+                                            self._unit_wh(events)))
         self.frames += 1
         self.broadcaster.post(TEXT, text, t0)
+        for g in found:
+            self.broadcaster.post(TEXT, encode_message(gesture_message(g)), t0)
+            self.gestures_sent += 1
         return text
+
+    def _unit_wh(self, events: Sequence[TouchEvent]) -> tuple[float, float] | None:
+        if any("sx" in ev.extra for ev in events):
+            sw = self.screen_wh
+            return (float(sw[0]), float(sw[1])) if sw is not None else None
+        wh = self._resolution_wh
+        return (float(wh[0]), float(wh[1])) if wh is not None else None
 
     def status(self) -> dict[str, Any]:
         """fps (from frame timestamps), ms_per_frame, touches (active ids), learning."""

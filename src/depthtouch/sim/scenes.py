@@ -346,6 +346,22 @@ def scene_hold(ctx: SceneContext) -> Script:
     return Script(tr.end_s + 0.3, hands=[HandTrack(ctx.hand(), ("index",), tr)])
 
 
+def scene_presses(ctx: SceneContext) -> Script:
+    """Eight one-finger presses held 0.1-1.0 s (shuffled): the tap / long-press boundary."""
+    rng = ctx.rng
+    yaw, pitch = _yaw(ctx), _pitch(rng)
+    holds = rng.permutation(np.linspace(0.1, 1.0, 8)) + rng.uniform(-0.03, 0.03, 8)
+    spots = [ctx.spot(0.2, 0.8) for _ in holds]
+    tr = ctx.enter(spots[0], yaw, pitch, EMPTY_S)
+    for st, hold in zip(spots, holds, strict=True):
+        tr.to(0.35, s=float(st[0]), t=float(st[1]), gap=UP_MM)
+        tr.to(0.08, gap=0.0)
+        tr.hold(float(max(hold, 0.05)))
+        tr.to(0.08, gap=UP_MM)
+    ctx.leave(tr)
+    return Script(tr.end_s + 0.3, hands=[HandTrack(ctx.hand(), ("index",), tr)])
+
+
 SCENE_BUILDERS: dict[str, Callable[[SceneContext], Script]] = {
     "taps": scene_taps,
     "drags": scene_drags,
@@ -358,6 +374,7 @@ SCENE_BUILDERS: dict[str, Callable[[SceneContext], Script]] = {
     "drift": scene_drift,
     "bump": scene_bump,
     "hold": scene_hold,
+    "presses": scene_presses,
 }
 
 SCENES: tuple[str, ...] = tuple(SCENE_BUILDERS)

@@ -194,6 +194,8 @@ def run_serve(
 
     Live cameras (``realsense``, ``openni``) are never paced: they deliver frames in real time.
     Errors (bad source, port taken, bad calibration file) raise DepthTouchError subclasses.
+    allowed_origins: browser origins besides the page's own allowed on the WebSocket
+    (``serve --allow-origin``), e.g. ``http://localhost:5173``.
     """
     from ..calibration import load_calibration
     from ..config import PipelineConfig, load_config
@@ -201,6 +203,7 @@ def run_serve(
     from ..pipeline import Pipeline
     from ..sources import is_live_spec, open_source
 
+    allowed_origins = check_origins(allowed_origins)
     config = load_config(config_path) if config_path else PipelineConfig()
     calibration = load_calibration(calibration_path) if calibration_path else None
     out = Path(calibration_out)
@@ -243,3 +246,19 @@ def run_serve(
         for source in opened:
             source.close()
     return runner.stats
+
+
+def check_origins(values: Sequence[str]) -> list[str]:
+    """``--allow-origin`` values as browsers send them (``scheme://host[:port]``); OutputError
+    (one line) for anything else."""
+    from urllib.parse import urlsplit
+
+    out = []
+    for v in values:
+        u = urlsplit(v.strip())
+        if u.scheme not in ("http", "https") or not u.hostname or u.path not in ("", "/"):
+            raise OutputError(f"--allow-origin {v!r} is not an origin; give e.g. "
+                              "http://localhost:5173 (scheme, host, optional port, no path)")
+        out.append(v.strip().rstrip("/"))
+    return out
+

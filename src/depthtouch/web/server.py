@@ -5,23 +5,29 @@ processing loop can use it::
 
     server = WebServer("127.0.0.1", 8765)
     server.start()                      # binds; OutputError if the port is taken
-    server.attach_pipeline(pipeline)    # optional: ms per frame and "learning" in the status
+    server.on_calibration = pipeline.set_calibration  # a fit on the page maps the events
     for frame in source.frames():
-        events = pipeline.process(frame)
-        server.sink.send(frame, events)           # never blocks
-        if server.height_due(frame.timestamp_s):  # a few times per second, only with clients
-            server.publish_height(frame, pipeline.height_map_mm(frame))
+        result = pipeline.process(frame)
+        server.sink.send(result)        # never blocks
+        server.send_height(result)      # a few times per second, only to clients that asked
     server.stop()
+
+(:class:`depthtouch.web.serve.WebPage` does this wiring for ``run --serve`` and ``serve``.)
 
 Routes: ``GET /`` and ``GET /<name>`` serve only the files of ``web/static`` (read once at
 construction; any other name is 404, so no path can leave the folder); ``GET /ws`` upgrades to a
-WebSocket when the Origin header is the server's own (or absent, as from non-browser clients);
-``POST /api/calibration`` fits and saves a screen calibration from the page's calibration flow.
+WebSocket when the Origin header is the server's own, one of ``allowed_origins`` (``serve
+--allow-origin``) or absent (non-browser clients); ``GET /ws?height=1`` also subscribes to the
+height-map images; ``POST /api/calibration`` fits and saves a screen calibration from the page's
+calibration flow.
 
-WebSocket messages (server to page): text JSON ``hello`` (on connect), ``frame`` (every
-processed frame, see :mod:`depthtouch.outputs.websocket`), ``meta`` (resolution changed),
-``calibration`` (a calibration was loaded or fitted), ``reset`` (a looped recording restarted),
-``info`` (a line for the page); binary: a JPEG of the colour height map.
+WebSocket messages (docs/websocket.md; schemas in ``protocol.schema.json`` here), server to
+client: text JSON ``hello`` (on connect, with the protocol ``version``), ``frame`` (every
+processed frame, see :mod:`depthtouch.outputs.websocket`), ``gesture`` (tap, double tap, long
+press, drag, pinch, rotate), ``meta`` (resolution changed), ``calibration`` (a calibration was
+loaded or fitted), ``reset`` (a looped recording restarted), ``info`` (a line for the page);
+binary: a JPEG of the colour height map, only to clients that asked for it. Client to server:
+``{"type": "subscribe", "height": true | false}``; anything else is ignored.
 """
 
 from __future__ import annotations
@@ -36,13 +42,23 @@ from pathlib import Path
 from typing import Any
 from urllib.parse import urlsplit
 
-import cv2
 import numpy as np
 from aiohttp import WSMsgType, web
 
 from ..errors import CalibrationError, DepthTouchError, OutputError
-from ..outputs.websocket import BINARY, TEXT, Broadcaster, WebSocketSink, encode_message
+from ..outputs.websocket import (
+    BINARY,
+    PROTOCOL_VERSION,
+    TEXT,
+    Broadcaster,
+    WebSocketSink,
+    encode_message,
+)
 from ..types import Frame, FrameResult, TouchEvent
+from .heightview import colorize_height, encode_jpeg
+
+__all__ = ["WebServer", "colorize_height", "encode_jpeg", "fit_and_save",
+           "parse_calibration_request"]
 
 log = logging.getLogger(__name__)
 
@@ -55,36 +71,6 @@ _CONTENT_TYPES = {
     ".svg": "image/svg+xml",
 }
 _MAX_PAIRS = 64
-
-
-def colorize_height(
-    height_mm: np.ndarray, lo_mm: float = 3.0, hi_mm: float = 80.0
-) -> np.ndarray:
-    """Colour view of a height map: uint8 BGR (H, W, 3), turbo colour map over [lo_mm, hi_mm].
-
-    Heights are clipped to the range, so with the default lo_mm = 3 the sensor noise of the empty
-    surface stays one flat colour; NaN (no surface or no depth) is dark grey. The input is not
-    modified.
-    """
-    if height_mm.ndim != 2:
-        raise ValueError(f"height_mm: expected shape (H, W), got {height_mm.shape}")
-    if not hi_mm > lo_mm:
-        raise ValueError(f"height range [{lo_mm}, {hi_mm}] is empty; give lo_mm < hi_mm")
-    h = np.asarray(height_mm, dtype=np.float32)
-    invalid = ~np.isfinite(h)
-    scaled = (np.nan_to_num(h, nan=lo_mm) - lo_mm) * (255.0 / (hi_mm - lo_mm))
-    gray = np.clip(scaled, 0.0, 255.0).astype(np.uint8)
-    bgr = cv2.applyColorMap(gray, cv2.COLORMAP_TURBO)
-    bgr[invalid] = 40
-    return bgr
-
-
-def encode_jpeg(bgr: np.ndarray, quality: int = 80) -> bytes:
-    """JPEG bytes of a BGR uint8 image (quality 1..100)."""
-    ok, buf = cv2.imencode(".jpg", bgr, [cv2.IMWRITE_JPEG_QUALITY, int(quality)])
-    if not ok:  # pragma: no cover - OpenCV only fails on empty images
-        raise OutputError("cannot encode the height view as JPEG; check the image size")
-    return bytes(buf)
 
 
 def _load_static(folder: Path) -> dict[str, tuple[bytes, str]]:
@@ -269,6 +255,7 @@ class WebServer:
         """Use this calibration for sx, sy from now on (``on_calibration`` hands it to the
         pipeline, which maps the events) and tell the pages."""
         self.calibration = calibration
+        self.sink.screen_wh = tuple(calibration.screen_wh) if calibration is not None else None
         if self.on_calibration is not None:
             self.on_calibration(calibration)
         if error_px is None and calibration is not None:
@@ -283,7 +270,7 @@ class WebServer:
 
     def height_due(self, t_s: float) -> bool:
         """True when a height image should be sent for a frame at ``t_s`` (rate limit, clients)."""
-        if self.broadcaster.n_clients == 0:
+        if self.broadcaster.n_height_clients == 0:
             return False
         last = self._last_height_t
         return last is None or t_s < last or t_s - last >= 1.0 / self.height_hz
@@ -383,6 +370,7 @@ class WebServer:
             targets = None
         return {
             "type": "hello",
+            "version": PROTOCOL_VERSION,
             "source": self.source_name,
             "resolution_wh": list(self.resolution_wh) if self.resolution_wh else None,
             "pad_wh": list(self.pad_wh),
@@ -398,16 +386,29 @@ class WebServer:
         ws = web.WebSocketResponse(heartbeat=15.0, max_msg_size=64 * 1024)
         await ws.prepare(request)
         transport = request.transport
-        self.broadcaster.add(ws, abort=transport.abort if transport is not None else None)
-        self.broadcaster.send_to(ws, TEXT, encode_message(self._hello()))
+        height = request.query.get("height", "0").lower() in ("1", "true", "yes")
+        self.broadcaster.add(ws, abort=transport.abort if transport is not None else None,
+                             height=height)
+        self.broadcaster.send_to(ws, TEXT, encode_message({**self._hello(), "height": height}))
         try:
             async for msg in ws:
                 if msg.type == WSMsgType.ERROR:
                     break
-                # the page sends nothing the server needs; anything else is ignored
+                if msg.type == WSMsgType.TEXT:
+                    self._client_message(ws, msg.data)
         finally:
             self.broadcaster.remove(ws)
         return ws
+
+    def _client_message(self, ws: web.WebSocketResponse, data: str) -> None:
+        """``{"type": "subscribe", "height": bool}``; anything else (or not JSON) is ignored."""
+        try:
+            msg = json.loads(data)
+        except ValueError:
+            return
+        if isinstance(msg, dict) and msg.get("type") == "subscribe" and isinstance(
+                msg.get("height"), bool):
+            self.broadcaster.subscribe(ws, msg["height"])
 
     async def _post_calibration(self, request: web.Request) -> web.Response:
         if not self._origin_ok(request):

@@ -391,7 +391,7 @@
   }
 
   function connect() {
-    const url = new URL("ws", window.location.href);
+    const url = new URL("ws?height=1", window.location.href);  // the page shows height maps
     url.protocol = url.protocol === "https:" ? "wss:" : "ws:";
     const ws = new WebSocket(url);
     ws.binaryType = "blob";
