@@ -13,24 +13,23 @@ from __future__ import annotations
 import argparse
 import sys
 from collections.abc import Callable, Sequence
-from typing import TYPE_CHECKING
 
+from .cli_tools import (
+    _add_bench_filters,
+    _add_calibrate,
+    _add_demo,
+    _add_eval,
+    _add_gestures,
+    _add_sim,
+)
+from .cli_tools import load_config_arg as _load_config
 from .errors import DepthTouchError
-
-if TYPE_CHECKING:
-    from .config import PipelineConfig
 
 
 class _Parser(argparse.ArgumentParser):
     def error(self, message: str) -> None:  # type: ignore[override]
         # argparse's own usage errors follow the one-line rule too
         self.exit(2, f"depthtouch: error: {message} (see depthtouch {self.prog.split()[-1]} -h)\n")
-
-
-def _load_config(path: str | None) -> PipelineConfig:
-    from .config import PipelineConfig, load_config
-
-    return load_config(path) if path else PipelineConfig()
 
 
 def _add_common_outputs(p: argparse.ArgumentParser) -> None:
@@ -88,29 +87,6 @@ def _add_replay(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=run, stops_cleanly=True)
 
 
-# --- bench-filters ------------------------------------------------------------------------------
-def _add_bench_filters(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser(
-        "bench-filters", help="measure the touch path filters on simulated paths"
-    )
-    p.add_argument("--json", action="store_true", help="print the results as JSON")
-    p.add_argument("--seed", type=int, default=1, help="seed of the measured paths (default 1)")
-    p.add_argument("--figure", help="also plot true, raw and filtered paths to this PNG")
-    p.add_argument("--tune", action="store_true",
-                   help="re-tune each filter on the tuning seeds before measuring")
-
-    def run(a: argparse.Namespace) -> int:
-        from .evaluation.filterbench import bench_filters, describe, to_json, write_figure
-
-        if a.figure:  # first, so that a bad path fails before the measurement
-            write_figure(a.figure, a.seed)
-        result = bench_filters(a.seed, tune=a.tune)
-        print(to_json(result) if a.json else describe(result))
-        return 0
-
-    p.set_defaults(func=run)
-
-
 # --- serve --------------------------------------------------------------------------------------
 def _add_serve(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
@@ -153,216 +129,6 @@ def _add_serve(sub: argparse._SubParsersAction) -> None:
         return 0
 
     p.set_defaults(func=run, stops_cleanly=True)
-
-
-# --- eval ---------------------------------------------------------------------------------------
-def _add_eval(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("eval", help="measure touch accuracy against simulator ground truth")
-    p.add_argument("recording", nargs="?", help="FILE.npz or a PNG folder (with --truth)")
-    p.add_argument("--truth", help="the recording's ground truth (depthtouch-truth/1 JSON)")
-    p.add_argument("--events", help="evaluate this events file instead of running the sensor")
-    p.add_argument("--suite", help="evaluate a suite: a committed name (default) or a .toml")
-    p.add_argument("--subset", help="only the suite's cases tagged so (e.g. quick)")
-    p.add_argument("--by", default="scene",
-                   help="suite rows: scene, camera, group, label, distance_m, surface or all")
-    p.add_argument("--config", help="TOML config file (see docs/config.md)")
-    p.add_argument("--gate-mm", type=float, default=20.0, help="match gate in mm (default 20)")
-    p.add_argument("--workers", type=int, help="processes for a suite (default: cores, <= 4)")
-    p.add_argument("--cache", action="store_true",
-                   help="keep the suite's recordings in .cache/depthtouch/suite (or "
-                        "$DEPTHTOUCH_CACHE) and reuse them")
-    p.add_argument("--half", choices=("tune", "held-out", "all"),
-                   help="with --suite: the tune or held-out half (or all), both side by side")
-    p.add_argument("--json", action="store_true", help="print the metrics as JSON")
-    p.add_argument("--gestures", action="store_true",
-                   help="gesture precision and recall per kind (tap, long press, drag) instead; "
-                        "without a recording: on the simulated presses, taps and drags scenes")
-
-    def run(a: argparse.Namespace) -> int:
-        import json
-
-        from .errors import ConfigError
-        from .evaluation.suite import cache_root, eval_recording_command, eval_suite_command
-
-        cfg = _load_config(a.config)
-        if a.half:
-            from .evaluation.halves import print_halves
-
-            if not a.suite:
-                raise ConfigError("--half needs --suite NAME (e.g. --suite hard --half held-out)")
-            return print_halves(a.suite, a.half, subset=a.subset, config=cfg,
-                                workers=a.workers, cache=cache_root() if a.cache else None,
-                                as_json=a.json, progress=None if a.json else _print_case)
-        if a.gestures:
-            from .evaluation.gestures import gestures_output
-
-            print(gestures_output(a.recording, a.truth, events_path=a.events, config=cfg,
-                                  as_json=a.json, progress=None if a.json else _print_case))
-            return 0
-        if a.suite:
-            if a.recording or a.truth or a.events:
-                raise ConfigError("give either --suite or a recording with --truth, not both")
-            metrics = eval_suite_command(
-                a.suite, subset=a.subset, by=a.by, config=cfg, workers=a.workers,
-                cache=cache_root() if a.cache else None,
-                progress=None if a.json else _print_case,
-            )
-        else:
-            metrics = eval_recording_command(a.recording, a.truth, events_path=a.events,
-                                             config=cfg, gate_mm=a.gate_mm)
-        if a.json:
-            print(json.dumps({k: m.to_dict() for k, m in metrics.items()}, indent=1))
-        else:
-            from rich.console import Console
-
-            from .evaluation.report import metrics_table
-
-            wide = None if sys.stdout.isatty() else 200  # no terminal: do not squeeze to 80
-            Console(width=wide).print(
-                metrics_table(metrics, title=f"accuracy ({a.suite or 'recording'})")
-            )
-        return 0
-
-    p.set_defaults(func=run)
-
-
-def _print_case(case: object, result: object) -> None:
-    print(f"  evaluated {getattr(case, 'label', case)}", file=sys.stderr, flush=True)
-
-
-# --- demo ---------------------------------------------------------------------------------------
-def _add_demo(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("demo", help="simulate scenes, run the sensor, write an HTML report")
-    p.add_argument("--out", default="demo-report", help="report folder (default demo-report)")
-    p.add_argument("--camera", default="kinect-v2", help="simulated camera profile")
-    p.add_argument("--distance", type=float, default=1.0, help="camera to surface, m (1.0)")
-    p.add_argument("--scenes", help="comma-separated scenes (default multitouch,drags,taps,hover)")
-    p.add_argument("--seed", type=int, default=1, help="simulator seed (default 1)")
-    p.add_argument("--config", help="TOML config file (see docs/config.md)")
-
-    def run(a: argparse.Namespace) -> int:
-        from rich.console import Console
-
-        from .evaluation.report import DEMO_SCENES, metrics_table, run_demo
-
-        scenes = [s.strip() for s in a.scenes.split(",") if s.strip()] if a.scenes else None
-        res = run_demo(a.out, scenes=scenes or DEMO_SCENES, camera=a.camera,
-                       distance_m=a.distance, seed=a.seed, config=_load_config(a.config),
-                       progress=lambda msg: print(msg, flush=True))
-        wide = None if sys.stdout.isatty() else 200
-        Console(width=wide).print(metrics_table(res.metrics, title="demo accuracy"))
-        print(f"report written to {res.index.resolve()} ({res.seconds:.1f} s)")
-        return 0
-
-    p.set_defaults(func=run)
-
-
-# --- calibrate ----------------------------------------------------------------------------------
-def _add_calibrate(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser(
-        "calibrate", help="fit the depth-to-screen homography from touched target points"
-    )
-    p.add_argument("--points", required=True,
-                   help='JSON point pairs: {"pairs": [{"depth_xy": [x, y], "screen_xy": '
-                        '[sx, sy]}, ...]} (see docs/outputs.md)')
-    p.add_argument("--screen", metavar="WxH",
-                   help="screen size in pixels, e.g. 1920x1080 (else screen_wh from the file)")
-    p.add_argument("--out", required=True, help="write the calibration JSON here")
-    p.add_argument("--ransac-px", type=float, default=25.0,
-                   help="outlier threshold in screen pixels with more than 4 pairs (default 25)")
-
-    def run(a: argparse.Namespace) -> int:
-        from .calibration import (
-            fit_calibration,
-            load_point_pairs,
-            parse_screen_wh,
-            save_calibration,
-        )
-        from .errors import CalibrationError
-
-        depth_xy, screen_xy, file_wh = load_point_pairs(a.points)
-        wh = parse_screen_wh(a.screen) if a.screen else file_wh
-        if wh is None:
-            raise CalibrationError(
-                "screen size unknown; pass --screen WxH or put screen_wh in the points file"
-            )
-        cal = fit_calibration(depth_xy, screen_xy, wh, ransac_threshold_px=a.ransac_px)
-        save_calibration(cal, a.out)
-        print(
-            f"calibration: {cal.n_inliers}/{cal.n_points} pairs used, reprojection error "
-            f"{cal.reprojection_error_px:.2f} px RMS (max {cal.max_error_px:.2f} px), "
-            f"leave-one-out {cal.loo_error_px:.2f} px, screen {wh[0]}x{wh[1]} -> {a.out}"
-        )
-        if cal.n_points == 4:
-            print("note: 4 pairs fit exactly (error 0 by construction); use 5 or more targets "
-                  "to measure the accuracy")
-        return 0
-
-    p.set_defaults(func=run)
-
-
-# --- gestures -----------------------------------------------------------------------------------
-def _add_gestures(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser(
-        "gestures", help="tap, double tap, long press, drag, pinch, rotate from an events file"
-    )
-    p.add_argument("events", help="touch events JSON Lines file (from replay --events)")
-    p.add_argument("--out", help="write gesture JSON Lines here (default: stdout)")
-    p.add_argument("--space", choices=("depth", "screen"), default="depth",
-                   help="pixels of the gestures: depth image, or screen (needs sx, sy)")
-
-    def run(a: argparse.Namespace) -> int:
-        import json
-
-        from .files import write_text_atomic
-        from .gestures import GestureConfig, recognize_all
-        from .outputs.jsonl import read_events
-
-        found = recognize_all(read_events(a.events), GestureConfig(space=a.space))
-        lines = "".join(json.dumps(g.to_dict()) + "\n" for g in found)
-        if not a.out:
-            sys.stdout.write(lines)
-            return 0
-        out = write_text_atomic(a.out, lines, what="the gestures")
-        print(f"{len(found)} gestures -> {out}")
-        return 0
-
-    p.set_defaults(func=run)
-
-
-# --- sim ----------------------------------------------------------------------------------------
-def _add_sim(sub: argparse._SubParsersAction) -> None:
-    from .sim import CAMERAS, SCENES, SURFACES
-
-    p = sub.add_parser("sim", help="render a simulated depth recording with ground truth")
-    p.add_argument("scene", help=f"one of {', '.join(SCENES)}")
-    p.add_argument("--out", required=True, help="FILE.npz or a new PNG folder")
-    p.add_argument("--truth", required=True, help="ground-truth JSON (docs/simulator.md)")
-    p.add_argument("--camera", default="realsense-d435", help=f"one of {', '.join(CAMERAS)}")
-    p.add_argument("--distance", type=float, default=1.0, help="surface distance, m [0.5, 2.5]")
-    p.add_argument("--tilt", type=float, default=0.0, help="surface tilt, deg [0, 40]")
-    p.add_argument("--surface", default="plane", help=f"one of {', '.join(SURFACES)}")
-    p.add_argument("--seed", type=int, default=0, help="random seed (>= 0)")
-    p.add_argument("--fps", type=float, default=30.0, help="frame rate, Hz [1, 120]")
-    p.add_argument("--no-noise", action="store_true", help="exact geometry, no sensor noise")
-    p.add_argument("-q", "--quiet", action="store_true", help="print only errors")
-
-    def run(a: argparse.Namespace) -> int:
-        from .sim import render_scene, write_recording
-
-        rec = render_scene(
-            a.scene, camera=a.camera, distance_m=a.distance, tilt_deg=a.tilt,
-            surface=a.surface, seed=a.seed, fps=a.fps, noise=not a.no_noise,
-        )
-        write_recording(rec, a.out, a.truth)
-        if not a.quiet:
-            n, h, w = rec.depth.shape
-            contacts = {c["id"] for f in rec.truth["frames"] for c in f["contacts"]}
-            print(f"{a.out}: {n} frames {w}x{h} at {rec.fps:g} fps, "
-                  f"{rec.truth['empty_frames']} empty, {len(contacts)} contacts; truth {a.truth}")
-        return 0
-
-    p.set_defaults(func=run)
 
 
 # --- run / record (live cameras) ------------------------------------------------------------------
