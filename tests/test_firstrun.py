@@ -41,7 +41,7 @@ def test_notice_only_with_a_cold_cache(tmp_path):
 
 def test_unknown_numba_internals_mean_warm(tmp_path):
     assert firstrun.cache_state([object()]) == (False, None)
-    cold, folder = firstrun.cache_state([tipkernel.frame_points])  # the real locator works
+    cold, folder = firstrun.cache_state([tipkernel._frame_points])  # the real locator works
     assert isinstance(cold, bool) and folder is not None
 
 

@@ -222,10 +222,10 @@ def _add_gestures(sub: argparse._SubParsersAction) -> None:
 
 # --- sim ----------------------------------------------------------------------------------------
 def _add_sim(sub: argparse._SubParsersAction) -> None:
-    from .sim import CAMERAS, SCENES, SURFACES
+    from .sim import ALL_SCENES, CAMERAS, SURFACES
 
     p = sub.add_parser("sim", help="render a simulated depth recording with ground truth")
-    p.add_argument("scene", help=f"one of {', '.join(SCENES)}")
+    p.add_argument("scene", help=f"one of {', '.join(ALL_SCENES)}")
     p.add_argument("--out", required=True, help="FILE.npz or a new PNG folder")
     p.add_argument("--truth", required=True, help="ground-truth JSON (docs/simulator.md)")
     p.add_argument("--camera", default="realsense-d435", help=f"one of {', '.join(CAMERAS)}")

@@ -43,11 +43,14 @@ def receiver():
 
 
 def alive_lists(packets: list[bytes]) -> list[list[int]]:
-    out = []
+    """The ``alive`` lists sent, session ids renumbered 1, 2, ... by first appearance (a sender
+    offsets them by a per-run base so that ids are never reused across runs)."""
+    out: list[list[int]] = []
+    order: dict[int, int] = {}
     for p in packets:
         for msg in OscBundle(p):
             if msg.params and msg.params[0] == "alive":
-                out.append(list(msg.params[1:]))
+                out.append([order.setdefault(s, len(order) + 1) for s in msg.params[1:]])
     return out
 
 
@@ -84,7 +87,8 @@ def test_paced_play_waits_for_each_frame_and_reaches_tuio(tmp_path, receiver):
     assert (summary.frames, summary.events, summary.touches) == (3, 5, 2)
     assert not summary.terminated and summary.outputs == (f"TUIO 127.0.0.1:{port}",)
     alive = alive_lists(recv_all(receiver))
-    assert alive == [[1], [1, 2], [], []]  # the last: close() drops every cursor
+    # opening and closing with an empty alive (a restarted sender's stale cursors go)
+    assert alive == [[], [1], [1, 2], [], []]
 
 
 def test_fast_play_does_not_wait(tmp_path, receiver):
@@ -103,8 +107,7 @@ def test_calibration_gives_the_screen(tmp_path, receiver):
     cal = save_calibration(Calibration(np.eye(3), (40, 80), 0.0), tmp_path / "cal.json")
     port = receiver.getsockname()[1]
     play(events, tuio=f"127.0.0.1:{port}", calibration_path=cal, fast=True)
-    (first, *_) = recv_all(receiver)
-    sets = [m.params for m in OscBundle(first) if m.params[0] == "set"]
+    sets = [m.params for p in recv_all(receiver) for m in OscBundle(p) if m.params[0] == "set"]
     assert sets[0][2:4] == pytest.approx([30 / 40, 40 / 80])  # sx, sy of the event / screen
 
 
@@ -157,8 +160,9 @@ def test_sigterm_mid_touch_lifts_every_contact_and_exits_0(tmp_path, receiver):
     events = write_events(tmp_path / "ev.jsonl", rows)  # one touch, a frame per second
     proc = _play_process(events, receiver.getsockname()[1])
     receiver.settimeout(60)
+    opening = receiver.recv(65536)  # the sender's opening empty alive
     first = receiver.recv(65536)  # the touch is down
-    assert alive_lists([first]) == [[1]]
+    assert alive_lists([opening, first]) == [[], [1]]
     proc.send_signal(signal.SIGTERM)
     out, err = proc.communicate(timeout=60)
     assert proc.returncode == 0, err

@@ -152,7 +152,7 @@ def test_sink_status_and_screen_coordinates() -> None:
     sink.send(FrameResult(Frame(np.zeros((4, 4), np.uint16), 0.5, 10),
                           [ev(10, 1, "up", 5.0, 6.0, sx=1.0, sy=2.0)], TouchPoints.empty(),
                           "learning"))
-    msg = json.loads(texts[-1])
+    msg = [m for m in map(json.loads, texts) if m["type"] == "frame"][-1]
     assert msg["touches"][0]["sx"] == 1.0 and msg["status"]["touches"] == 0
     assert msg["status"]["learning"] is True and msg["status"]["ms_per_frame"] is None
     # time going back (looped recording) restarts the fps window

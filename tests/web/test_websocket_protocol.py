@@ -138,9 +138,11 @@ def test_control_messages_validate():
     server.set_calibration(cal)
     server.notify({"type": "reset", "message": "the recording starts again"})
     server.notify({"type": "info", "message": "the recording has finished"})
+    from depthtouch.calibration import apply_calibration
     from depthtouch.types import TouchEvent
 
-    server.inject([TouchEvent(3, 0.1, 1, "down", 320.0, 240.0)])
+    # sx, sy come with the events (the pipeline maps them); the sink normalises them
+    server.inject(apply_calibration([TouchEvent(3, 0.1, 1, "down", 320.0, 240.0)], cal))
     msgs = [json.loads(s) for s in sent]
     assert [m["type"] for m in msgs] == ["meta", "calibration", "reset", "info", "frame"]
     for m in msgs:

@@ -113,9 +113,9 @@ class Suite:
 # --- loading -------------------------------------------------------------------------------------
 def _sim_names() -> tuple[tuple[str, ...], tuple[str, ...]]:
     """Every scene and camera a suite may name ("all" means the default ones only)."""
-    from ..sim import CAMERAS, HARD_CAMERAS, HARD_SCENES, SCENES
+    from ..sim import ALL_SCENES, CAMERAS, HARD_CAMERAS
 
-    return tuple(SCENES) + tuple(HARD_SCENES), tuple(CAMERAS) + tuple(HARD_CAMERAS)
+    return ALL_SCENES, tuple(CAMERAS) + tuple(HARD_CAMERAS)
 
 
 def _all_default(group: dict[str, Any], key: str, names: list[Any]) -> list[Any]:
