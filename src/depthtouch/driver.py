@@ -154,41 +154,40 @@ def drive(
 
     frames = iter(source.frames())
     interrupted = False
-    listening = stopping.listen(stop.set)  # SIGTERM, SIGHUP, Ctrl-C end the loop between frames
-    listening.__enter__()
     try:
-        for item in frames:
-            if stop.is_set():
-                break
-            if isinstance(item, StreamGap):
-                stats.gaps += 1
-                end_touches()
-                continue
-            if pacer is not None and pacer.until(item.timestamp_s):
-                break
-            try:
-                result = pipeline.process(item)
-            except (DepthTouchError, ValueError) as e:
-                if not lenient:
-                    raise
-                warn("pipeline", f"frame {item.index} skipped: {e}")
-                continue
-            stats.frames += 1
-            total = result.timing_ms.get("total")
-            if total is not None:
-                if len(stats.ms_per_frame) >= stats.keep:
-                    del stats.ms_per_frame[: stats.keep // 2]
-                stats.ms_per_frame.append(total)
-            deliver(result)
-            if flush_interval_s is not None and clock() - last_flush >= flush_interval_s:
-                last_flush = clock()
-                _flush(sinks)
-            if max_frames is not None and stats.frames >= max_frames:
-                break
+        # SIGTERM, SIGHUP, Ctrl-C (depthtouch.stopping) set ``stop``: the loop ends between frames
+        with stopping.listen(stop.set):
+            for item in frames:
+                if stop.is_set():
+                    break
+                if isinstance(item, StreamGap):
+                    stats.gaps += 1
+                    end_touches()
+                    continue
+                if pacer is not None and pacer.until(item.timestamp_s):
+                    break
+                try:
+                    result = pipeline.process(item)
+                except (DepthTouchError, ValueError) as e:
+                    if not lenient:
+                        raise
+                    warn("pipeline", f"frame {item.index} skipped: {e}")
+                    continue
+                stats.frames += 1
+                total = result.timing_ms.get("total")
+                if total is not None:
+                    if len(stats.ms_per_frame) >= stats.keep:
+                        del stats.ms_per_frame[: stats.keep // 2]
+                    stats.ms_per_frame.append(total)
+                deliver(result)
+                if flush_interval_s is not None and clock() - last_flush >= flush_interval_s:
+                    last_flush = clock()
+                    _flush(sinks)
+                if max_frames is not None and stats.frames >= max_frames:
+                    break
     except KeyboardInterrupt:
         interrupted = stats.interrupted = True
     finally:
-        listening.__exit__(None, None, None)
         close = getattr(frames, "close", None)
         if close is not None:
             with contextlib.suppress(Exception):
