@@ -154,6 +154,8 @@ def _add_eval(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--cache", action="store_true",
                    help="keep the suite's recordings in .cache/depthtouch/suite (or "
                         "$DEPTHTOUCH_CACHE) and reuse them")
+    p.add_argument("--half", choices=("tune", "held-out", "all"),
+                   help="with --suite: the tune or held-out half (or all), both side by side")
     p.add_argument("--json", action="store_true", help="print the metrics as JSON")
 
     def run(a: argparse.Namespace) -> int:
@@ -163,6 +165,14 @@ def _add_eval(sub: argparse._SubParsersAction) -> None:
         from .evaluation.suite import cache_root, eval_recording_command, eval_suite_command
 
         cfg = _load_config(a.config)
+        if a.half:
+            from .evaluation.halves import print_halves
+
+            if not a.suite:
+                raise ConfigError("--half needs --suite NAME (e.g. --suite hard --half held-out)")
+            return print_halves(a.suite, a.half, subset=a.subset, config=cfg,
+                                workers=a.workers, cache=cache_root() if a.cache else None,
+                                as_json=a.json, progress=None if a.json else _print_case)
         if a.suite:
             if a.recording or a.truth or a.events:
                 raise ConfigError("give either --suite or a recording with --truth, not both")

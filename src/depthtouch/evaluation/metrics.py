@@ -297,6 +297,8 @@ class EvalResult:
     frame, reported id, frames reported, and the height of the hover it came near (NaN = other).
     still_sq_sum_mm2, still_count: pooled squared deviations of still-finger runs (for jitter).
     timing_ms: per-frame processing time when the caller measured it.
+    false_last: per false track, its last frame. change_frames: frames of surface changes
+    (:data:`SURFACE_CHANGES` events in the truth).
     """
 
     label: str
@@ -323,6 +325,8 @@ class EvalResult:
     still_sq_sum_mm2: float
     still_count: int
     timing_ms: np.ndarray
+    false_last: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
+    change_frames: tuple[int, ...] = ()
 
 
 def _episodes(frame: np.ndarray, ids: np.ndarray) -> np.ndarray:
@@ -410,11 +414,13 @@ def evaluate(
     f_ids = np.unique(a_id[false_mask])
     false_first = np.zeros(len(f_ids), np.int64)
     false_frames = np.zeros(len(f_ids), np.int64)
+    false_last = np.zeros(len(f_ids), np.int64)
     false_h = np.full(len(f_ids), np.nan)
     for k, rid in enumerate(f_ids):
         sel = a_id == rid
         false_first[k] = a_frame[sel].min()
         false_frames[k] = np.unique(a_frame[sel]).size
+        false_last[k] = a_frame[sel].max()
         hs = a_hover_h[sel]
         if np.any(np.isfinite(hs)):
             false_h[k] = np.nanmin(hs)
@@ -498,7 +504,19 @@ def evaluate(
         false_hover_height_mm=false_h,
         still_sq_sum_mm2=sq_sum, still_count=sq_count,
         timing_ms=np.asarray(timing_ms if timing_ms is not None else [], dtype=np.float64),
+        false_last=false_last,
+        change_frames=_change_frames(truth),
     )
+
+
+SURFACE_CHANGES = ("object_placed", "object_removed", "bump")
+
+
+def _change_frames(truth: Truth) -> tuple[int, ...]:
+    """Frames of the truth's surface-change events (an object put down or taken, a bump)."""
+    events = truth.meta.get("events", [])
+    return tuple(sorted(int(e["frame"]) for e in events if isinstance(e, dict)
+                        and e.get("kind") in SURFACE_CHANGES and isinstance(e.get("frame"), int)))
 
 
 def _runs(mask: np.ndarray) -> list[tuple[int, int]]:

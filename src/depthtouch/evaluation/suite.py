@@ -111,9 +111,18 @@ class Suite:
 
 # --- loading -------------------------------------------------------------------------------------
 def _sim_names() -> tuple[tuple[str, ...], tuple[str, ...]]:
+    """Every scene and camera a suite may name ("all" means the default ones only)."""
+    from ..sim import CAMERAS, HARD_CAMERAS, HARD_SCENES, SCENES
+
+    return tuple(SCENES) + tuple(HARD_SCENES), tuple(CAMERAS) + tuple(HARD_CAMERAS)
+
+
+def _all_default(group: dict[str, Any], key: str, names: list[Any]) -> list[Any]:
     from ..sim import CAMERAS, SCENES
 
-    return tuple(SCENES), tuple(CAMERAS)
+    if group.get(key) == "all":
+        return list(SCENES if key == "scenes" else CAMERAS)
+    return names
 
 
 def _list(group: dict[str, Any], key: str, default: list[Any] | None, where: str,
@@ -165,8 +174,8 @@ def suite_from_dict(data: dict[str, Any], where: str = "suite") -> Suite:
             raise ConfigError(
                 f"{gw}: unknown key {unknown[0]!r}; allowed: {', '.join(sorted(known))}"
             )
-        sc = _list(g, "scenes", None, gw, scenes)
-        cams = _list(g, "cameras", None, gw, cameras)
+        sc = _all_default(g, "scenes", _list(g, "scenes", None, gw, scenes))
+        cams = _all_default(g, "cameras", _list(g, "cameras", None, gw, cameras))
         dists = _numbers(_list(g, "distances_m", None, gw), "distances_m", gw, 0.3, 5.0)
         surfs = _list(g, "surfaces", ["plane"], gw, SURFACES)
         tilts = _numbers(_list(g, "tilts_deg", [0.0], gw), "tilts_deg", gw, 0.0, 80.0)

@@ -11,13 +11,16 @@ See docs/simulator.md for the camera profiles, the scenes and the truth format.
 
 from __future__ import annotations
 
-from .cameras import CAMERAS, PROFILES, CameraProfile, get_profile
+from .cameras import CAMERAS, HARD_CAMERAS, PROFILES, CameraProfile, get_profile
 from .geometry import SURFACES
+from .hardscenes import HARD_SCENES
 from .render import SimRecording, finger_label, load_truth, render_scene, write_recording
 from .scenes import SCENES
 
 __all__ = [
     "CAMERAS",
+    "HARD_CAMERAS",
+    "HARD_SCENES",
     "PROFILES",
     "SCENES",
     "SURFACES",

@@ -20,12 +20,13 @@ sigma: quantisation variance q^2/12 is taken out of the added Gaussian noise.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import cv2
 import numpy as np
 
 from ..errors import ConfigError
+from .artefacts import fatten_edges, multipath, speckle_holes
 
 
 @dataclass(frozen=True)
@@ -46,6 +47,11 @@ class CameraProfile:
     edge_jitter_prob: probability that a depth-edge pixel takes its neighbour's side (fore- or
         background, 50/50) in a frame: lateral noise, edges wander by about a pixel.
     edge_dropout_prob: probability that a depth-edge pixel is missing.
+    noise_scale_range: (lo, hi) factor on sigma, drawn once per recording from the seed (a
+        different unit of the same camera, or a warmer room); (1, 1) = the nominal sigma.
+    multipath_mm, multipath_reach_mm: ToF multipath bias near low hand parts (sim/artefacts.py).
+    fatten_px, fatten_prob: stereo edge fattening: reach (px) and probability per frame.
+    speckle_per_mpx: stereo speckle holes per megapixel and frame at 1 m (grows with z^2).
     """
 
     name: str
@@ -66,6 +72,12 @@ class CameraProfile:
     flying_prob: float = 0.0
     edge_jitter_prob: float = 0.0
     edge_dropout_prob: float = 0.0
+    noise_scale_range: tuple[float, float] = (1.0, 1.0)
+    multipath_mm: float = 0.0
+    multipath_reach_mm: float = 20.0
+    fatten_px: int = 0
+    fatten_prob: float = 0.0
+    speckle_per_mpx: float = 0.0
 
     @property
     def K(self) -> np.ndarray:
@@ -119,6 +131,26 @@ PROFILES: dict[str, CameraProfile] = {
 
 CAMERAS: tuple[str, ...] = tuple(PROFILES)
 
+# The hard suite's profiles (docs/simulator.md): the same sensors with the artefacts the default
+# profiles leave out, and a noise level drawn per seed. Kept apart from CAMERAS so that suites
+# saying cameras = "all" (the default suite, a regression reference) do not change.
+HARD_PROFILES: dict[str, CameraProfile] = {
+    "kinect-v2-hard": replace(
+        PROFILES["kinect-v2"], name="kinect-v2-hard", flying_prob=0.75, edge_dropout_prob=0.1,
+        noise_scale_range=(0.9, 1.4), multipath_mm=3.0, multipath_reach_mm=25.0,
+    ),
+    "realsense-d435-hard": replace(
+        PROFILES["realsense-d435"], name="realsense-d435-hard", noise_scale_range=(0.9, 1.5),
+        fatten_px=2, fatten_prob=0.6, speckle_per_mpx=150.0,
+    ),
+    "kinect-v1-hard": replace(
+        PROFILES["kinect-v1"], name="kinect-v1-hard", noise_scale_range=(0.9, 1.3),
+        fatten_px=1, fatten_prob=0.4,
+    ),
+}
+HARD_CAMERAS: tuple[str, ...] = tuple(HARD_PROFILES)
+PROFILES.update(HARD_PROFILES)
+
 
 def get_profile(name: str) -> CameraProfile:
     """The profile called ``name``; ConfigError listing the valid names otherwise."""
@@ -126,7 +158,7 @@ def get_profile(name: str) -> CameraProfile:
         return PROFILES[name]
     except KeyError:
         raise ConfigError(
-            f"unknown camera {name!r}; use one of {', '.join(CAMERAS)}"
+            f"unknown camera {name!r}; use one of {', '.join(CAMERAS + HARD_CAMERAS)}"
         ) from None
 
 
@@ -170,6 +202,11 @@ class NoiseModel:
         # column index of every pixel, for the occlusion test
         self._cols = np.broadcast_to(np.arange(w, dtype=np.float32), self.shape)
         self._static_z: np.ndarray | None = None
+        # drawn last, and only for profiles that vary, so the other profiles' streams stay as
+        # they were (the default suite is a regression reference)
+        lo, hi = profile.noise_scale_range
+        self.noise_scale = np.float32(rng.uniform(lo, hi)) if hi > lo else np.float32(lo)
+        self._depth_mm = 1000.0
 
     def _blur_unit(self, white: np.ndarray) -> np.ndarray:
         """Gaussian-blurred white noise rescaled to unit variance (by the kernel's norm)."""
@@ -208,6 +245,7 @@ class NoiseModel:
             self._static_rmin = self._right_min(r)
             missing |= self._hidden(r, self._static_rmin)
         self._static_missing = missing
+        self._depth_mm = float(np.median(z[z > 0])) if np.any(z > 0) else 1000.0
 
     def _maps(self, z: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """sigma, the Gaussian std to add, and the range-invalid mask for depths z."""
@@ -215,6 +253,8 @@ class NoiseModel:
         valid = z > 0
         zs = np.where(valid, z, np.float32(p.min_range_mm))
         sigma = p.sigma_mm(zs)
+        if self.noise_scale != 1.0:
+            sigma = sigma * self.noise_scale
         q = p.quantum_mm(zs)
         # leave room for the quantisation variance so the output std equals sigma
         add = np.sqrt(np.maximum(sigma * sigma - q * q * np.float32(1.0 / 12.0),
@@ -252,6 +292,8 @@ class NoiseModel:
             vals = noisy.reshape(-1)[self._near_limit]
             out_of_range = (vals < p.min_range_mm) | (vals > p.max_range_mm)
             missing.reshape(-1)[self._near_limit[out_of_range]] = True
+        if p.speckle_per_mpx > 0:
+            missing |= speckle_holes(self.shape, p.speckle_per_mpx, self._depth_mm, self.rng)
         k = self.rng.poisson(p.dropout_rate * self._n)
         if k:
             missing.reshape(-1)[self.rng.integers(0, self._n, k)] = True
@@ -273,6 +315,10 @@ class NoiseModel:
         nb = zb + add * eps[sl] + sigma * self.bias[sl]
         edge_missing, fly = self._edge_effects(zb, sigma, nb)
         nb = nb if fly is None else fly
+        if p.multipath_mm > 0 and self._static_z is not None:
+            multipath(nb, zb, self._static_z[sl], p.fx_px, p.multipath_mm, p.multipath_reach_mm)
+        if p.fatten_px > 0:
+            fatten_edges(nb, zb, sigma, p.fatten_px, p.fatten_prob, self.rng)
         noisy[sl] = nb
         # mixed or moved edge pixels can leave the range too
         missing[sl] |= bad | edge_missing | (nb < p.min_range_mm) | (nb > p.max_range_mm)

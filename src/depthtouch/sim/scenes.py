@@ -522,8 +522,10 @@ SCENES: tuple[str, ...] = tuple(SCENE_BUILDERS)
 
 def build_script(scene: str, ctx: SceneContext) -> Script:
     """The script of ``scene``; ConfigError listing the valid names otherwise."""
-    try:
-        builder = SCENE_BUILDERS[scene]
-    except KeyError:
-        raise ConfigError(f"unknown scene {scene!r}; use one of {', '.join(SCENES)}") from None
+    from .hardscenes import HARD_SCENE_BUILDERS, HARD_SCENES  # they build on this module
+
+    builder = SCENE_BUILDERS.get(scene) or HARD_SCENE_BUILDERS.get(scene)
+    if builder is None:
+        names = ", ".join(SCENES + HARD_SCENES)
+        raise ConfigError(f"unknown scene {scene!r}; use one of {names}")
     return builder(ctx)

@@ -20,11 +20,11 @@ class SimSource(SourceBase):
     """Frames of a simulated scene (see :func:`depthtouch.sim.render_scene` for the options)."""
 
     def __init__(self, scene: str, **options: Any) -> None:
-        from ..sim import SCENES, render_scene
+        from ..sim import HARD_SCENES, SCENES, render_scene
 
-        if scene not in SCENES:
+        if scene not in SCENES + HARD_SCENES:
             raise SourceError(f"unknown simulator scene {scene!r}; use sim:NAME with NAME one of "
-                              f"{', '.join(SCENES)}")
+                              f"{', '.join(SCENES + HARD_SCENES)}")
         unknown = sorted(set(options) - set(_OPTIONS))
         if unknown:
             raise SourceError(f"sim:{scene}: unknown option(s) {', '.join(unknown)}; "

@@ -1,0 +1,276 @@
+"""Tune on one half of a suite, report on the other: the split, the figures, the side-by-side table.
+
+Every suite case belongs to one half, ``tune`` or ``held-out``, decided by its seed and its
+camera placement (camera, distance, surface, tilt)::
+
+    half = tune  if (seed + h(placement)) is even  else held-out
+
+with h a fixed hash (SHA-256) of the placement's text. Two cases with the same seed and the same
+placement thus always fall in the same half: a held-out case never shares its seed *and* its
+placement with a tuned one (it is another room, or the same mount seen with another hand, noise
+pattern and timing). Consecutive seeds at one placement fall in different halves, so a suite
+that gives each placement two seeds or more has every placement on both sides.
+
+Each case's *situation* is its suite group's name (the hard suite names them after the rows of
+issue 13's "Where it fails" table); cases of groups tagged ``far`` (the far stereo scenes) count
+apart in recall. :func:`figures` gives the issue's measures for any set of results, and
+:func:`halves_report` both halves side by side, overall and per situation.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import math
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+from ..config import PipelineConfig
+from ..errors import ConfigError
+from .metrics import EvalResult, summarize
+from .suite import Suite, SuiteCase, default_workers, load_suite, run_cases
+
+if TYPE_CHECKING:  # pragma: no cover
+    from rich.table import Table
+
+TUNE, HELD_OUT = "tune", "held-out"
+HALVES = (TUNE, HELD_OUT)
+FAR_TAG = "far"
+DRIFT_TAG = "drift"
+LATE_AFTER_CHANGE_S = 2.0
+
+
+def placement(case: SuiteCase) -> str:
+    """The camera placement of a case: camera, distance, surface and tilt, as text."""
+    return f"{case.camera}/{case.distance_m:g}m/{case.surface}/{case.tilt_deg:g}deg"
+
+
+def half_of(case: SuiteCase) -> str:
+    """``tune`` or ``held-out`` (see the module docstring); deterministic, no state."""
+    h = int(hashlib.sha256(placement(case).encode()).hexdigest()[:8], 16)
+    return TUNE if (case.seed + h) % 2 == 0 else HELD_OUT
+
+
+def select_half(cases: Sequence[SuiteCase], half: str) -> list[SuiteCase]:
+    """The cases of ``half`` (``tune``, ``held-out``) or all of them (``all``)."""
+    if half == "all":
+        return list(cases)
+    if half not in HALVES:
+        raise ConfigError(f"unknown half {half!r}; use tune, held-out or all")
+    return [c for c in cases if half_of(c) == half]
+
+
+def late_false_after_change(r: EvalResult, after_s: float = LATE_AFTER_CHANGE_S) -> int:
+    """False tracks that began at or after a surface change and were still reported more than
+    ``after_s`` seconds after it (the latest change before the track's first frame)."""
+    if not r.change_frames or r.false_frame.size == 0:
+        return 0
+    fps = r.n_frames / r.duration_s if r.duration_s > 0 else 30.0
+    n = 0
+    for first, last in zip(r.false_frame.tolist(), r.false_last.tolist(), strict=True):
+        before = [c for c in r.change_frames if c <= first]
+        if before and last - before[-1] > after_s * fps:
+            n += 1
+    return n
+
+
+def _num(v: float) -> float | None:
+    return None if not math.isfinite(v) else round(float(v), 4)
+
+
+def figures(results: Sequence[EvalResult], far: Sequence[bool],
+            drift: Sequence[bool] | None = None) -> dict[str, Any]:
+    """Issue 13's measures over ``results`` (JSON-ready; None where nothing was measured).
+
+    far: per result, whether it counts apart in recall (far stereo); drift: per result, whether
+    its recall is also the recall under drift.
+    """
+    if not results:
+        return {"recordings": 0}
+    m = summarize(results)
+    near = [r for r, f in zip(results, far, strict=True) if not f]
+    farr = [r for r, f in zip(results, far, strict=True) if f]
+    drifting = [r for r, d in zip(results, drift or [False] * len(results), strict=True) if d]
+
+    def recall(rs: list[EvalResult]) -> float | None:
+        return _num(summarize(rs).contact_recall) if rs else None
+
+    return {
+        "recordings": m.recordings,
+        "minutes": round(m.duration_s / 60.0, 2),
+        "contacts": m.contacts,
+        "recall_working": recall(near),
+        "recall_far": recall(farr),
+        "frame_recall": _num(m.frame_recall),
+        "false_touches": m.false_touches,
+        "false_per_min": _num(m.false_per_min),
+        "false_from_hover_25mm": m.false_from_hover_at_least(25.0),
+        "error_median_mm": _num(m.error_median_mm),
+        "error_p95_mm": _num(m.error_p95_mm),
+        "id_switches": m.id_switches,
+        "down_latency_median_frames": _num(m.down_latency_median_frames),
+        "jitter_rms_mm": _num(m.jitter_rms_mm),
+        "angle_error_deg": _num(m.angle_error_deg),
+        "recall_drift": recall(drifting),
+        "false_late_after_change": sum(late_false_after_change(r) for r in results),
+    }
+
+
+def halves_report(suite: Suite, cases: Sequence[SuiteCase],
+                  results: Sequence[EvalResult]) -> dict[str, Any]:
+    """Both halves side by side: ``{"overall": {half: figures}, "situations": {name: {half:
+    figures}}}`` over the given cases (one result per case, in order)."""
+    far = [FAR_TAG in suite.tags.get(c, frozenset()) for c in cases]
+    drift = [DRIFT_TAG in suite.tags.get(c, frozenset()) for c in cases]
+    halves = [half_of(c) for c in cases]
+
+    def block(keep: Callable[[int], bool]) -> dict[str, Any]:
+        out: dict[str, Any] = {}
+        for h in HALVES:
+            idx = [i for i in range(len(cases)) if halves[i] == h and keep(i)]
+            if idx:
+                out[h] = figures([results[i] for i in idx], [far[i] for i in idx],
+                                 [drift[i] for i in idx])
+        return out
+
+    def in_group(name: str) -> Callable[[int], bool]:
+        return lambda i: cases[i].group == name
+
+    situations = {name: block(in_group(name)) for name in dict.fromkeys(c.group for c in cases)}
+    return {"suite": suite.name, "overall": block(lambda i: True), "situations": situations}
+
+
+def eval_halves_command(
+    suite: str | Path,
+    *,
+    half: str = "all",
+    subset: str | None = None,
+    config: PipelineConfig | None = None,
+    workers: int | None = None,
+    cache: Path | None = None,
+    progress: Callable[[SuiteCase, EvalResult], None] | None = None,
+) -> dict[str, Any]:
+    """``depthtouch eval --suite NAME --half tune|held-out|all``: :func:`halves_report`."""
+    s = load_suite(suite)
+    cases = select_half(s.select(subset), half)
+    if not cases:
+        raise ConfigError(f"suite {s.name} has no {half} cases; give each placement two seeds")
+    results = run_cases(cases, config, gate_mm=s.gate_mm, workers=workers or default_workers(),
+                        cache=cache, progress=progress)
+    return halves_report(s, cases, results)
+
+
+# --- tables ----------------------------------------------------------------------------------
+ROWS: tuple[tuple[str, str, str], ...] = (
+    ("recordings", "recordings", "{:d}"),
+    ("contacts", "contacts", "{:d}"),
+    ("recall_working", "contact recall, working range", "{:.3f}"),
+    ("recall_far", "contact recall, far stereo", "{:.3f}"),
+    ("false_per_min", "false touches / min", "{:.1f}"),
+    ("false_from_hover_25mm", "false touches from hovers >= 25 mm", "{:d}"),
+    ("error_median_mm", "position error median (mm)", "{:.1f}"),
+    ("error_p95_mm", "position error p95 (mm)", "{:.1f}"),
+    ("id_switches", "id switches", "{:d}"),
+    ("down_latency_median_frames", "touch-down latency median (frames)", "{:.0f}"),
+    ("jitter_rms_mm", "still-finger jitter RMS (mm)", "{:.2f}"),
+    ("angle_error_deg", "path angle error (deg)", "{:.1f}"),
+    ("recall_drift", "contact recall under drift", "{:.3f}"),
+    ("false_late_after_change", "false touches > 2 s after a surface change", "{:d}"),
+)
+
+SITUATION_COLS: tuple[tuple[str, str, str], ...] = (
+    ("contacts", "contacts", "{:d}"),
+    ("recall", "recall", "{:.3f}"),
+    ("false_touches", "false", "{:d}"),
+    ("false_per_min", "false/min", "{:.1f}"),
+    ("error_median_mm", "err med", "{:.1f}"),
+    ("error_p95_mm", "err p95", "{:.1f}"),
+    ("id_switches", "id sw", "{:d}"),
+    ("jitter_rms_mm", "jitter", "{:.2f}"),
+    ("angle_error_deg", "angle", "{:.1f}"),
+)
+
+
+def fmt(v: Any, spec: str) -> str:
+    """A figure as text; "-" for None."""
+    if v is None:
+        return "-"
+    return spec.format(v)
+
+
+def situation_recall(f: dict[str, Any]) -> Any:
+    """A situation's recall: the working-range one, or the far one for far situations."""
+    return f.get("recall_working") if f.get("recall_working") is not None else f.get("recall_far")
+
+
+def overall_rows(report: dict[str, Any]) -> list[list[str]]:
+    """[measure, tune, held-out] rows of the overall figures."""
+    ov = report["overall"]
+    return [[label] + [fmt(ov.get(h, {}).get(key), spec) for h in HALVES]
+            for key, label, spec in ROWS]
+
+
+def situation_rows(report: dict[str, Any]) -> list[list[str]]:
+    """[situation, half, columns of SITUATION_COLS...] rows."""
+    out = []
+    for name, block in report["situations"].items():
+        for h in HALVES:
+            f = block.get(h)
+            if not f:
+                continue
+            vals = [fmt(situation_recall(f) if key == "recall" else f.get(key), spec)
+                    for key, _, spec in SITUATION_COLS]
+            out.append([name, h, *vals])
+    return out
+
+
+def halves_tables(report: dict[str, Any]) -> tuple[Table, Table]:
+    """Two rich tables: the overall figures (halves side by side) and the per-situation rows."""
+    from rich.table import Table
+
+    a = Table(title=f"suite {report['suite']}: tune vs held-out")
+    a.add_column("measure")
+    for h in HALVES:
+        a.add_column(h, justify="right")
+    for row in overall_rows(report):
+        a.add_row(*row)
+    b = Table(title="per situation")
+    b.add_column("situation")
+    b.add_column("half")
+    for _, head, _ in SITUATION_COLS:
+        b.add_column(head, justify="right")
+    for row in situation_rows(report):
+        b.add_row(*row)
+    return a, b
+
+
+def print_halves(suite: str | Path, half: str, *, subset: str | None = None,
+                 config: PipelineConfig | None = None, workers: int | None = None,
+                 cache: Path | None = None, as_json: bool = False,
+                 progress: Callable[[SuiteCase, EvalResult], None] | None = None) -> int:
+    """The CLI's ``eval --suite NAME --half H``: print the tables (or JSON); returns 0."""
+    import json
+    import sys
+
+    report = eval_halves_command(suite, half=half, subset=subset, config=config,
+                                 workers=workers, cache=cache, progress=progress)
+    if as_json:
+        print(json.dumps(report, indent=1))
+        return 0
+    from rich.console import Console
+
+    console = Console(width=None if sys.stdout.isatty() else 200)
+    for table in halves_tables(report):
+        console.print(table)
+    return 0
+
+
+def halves_markdown(report: dict[str, Any]) -> list[str]:
+    """Markdown lines: the overall figures (halves side by side) and the per-situation table."""
+    out = ["| measure | tune | held-out |", "|---|---|---|"]
+    out += ["| " + " | ".join(row) + " |" for row in overall_rows(report)]
+    heads = [head for _, head, _ in SITUATION_COLS]
+    out += ["", "| situation | half | " + " | ".join(heads) + " |",
+            "|---|---|" + "---|" * len(heads)]
+    out += ["| " + " | ".join(row) + " |" for row in situation_rows(report)]
+    return out

@@ -1,0 +1,140 @@
+"""The tune / held-out split, the late-after-change count and the per-situation figures."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from typing import Any
+
+import pytest
+from test_evaluation import contact, doc, hover, track
+
+from depthtouch.errors import ConfigError
+from depthtouch.evaluation.halves import (
+    HALVES,
+    figures,
+    half_of,
+    halves_report,
+    late_false_after_change,
+    overall_rows,
+    placement,
+    select_half,
+    situation_rows,
+)
+from depthtouch.evaluation.metrics import evaluate, truth_from_dict
+from depthtouch.evaluation.suite import SuiteCase, load_suite, suite_from_dict
+
+
+def test_split_is_deterministic_and_disjoint() -> None:
+    suite = load_suite("hard")
+    cases = list(suite.cases)
+    assert [half_of(c) for c in cases] == [half_of(c) for c in load_suite("hard").cases]
+    tune, held = select_half(cases, "tune"), select_half(cases, "held-out")
+    assert len(tune) + len(held) == len(cases) and not set(tune) & set(held)
+    assert select_half(cases, "all") == cases
+    # a held-out case never shares its seed and its placement with a tuned one
+    assert not {(c.seed, placement(c)) for c in tune} & {(c.seed, placement(c)) for c in held}
+    # every situation and every placement is on both sides
+    for key in (lambda c: c.group, placement):
+        assert {key(c) for c in tune} == {key(c) for c in held}
+
+
+def test_half_depends_on_seed_and_placement_only() -> None:
+    a = SuiteCase("approach", "kinect-v2-hard", 2.0, tilt_deg=30.0, seed=3, group="x")
+    assert half_of(a) == half_of(dataclasses.replace(a, scene="rest", group="y", fps=15.0))
+    # the next seed at the same placement is in the other half
+    assert half_of(a) != half_of(dataclasses.replace(a, seed=4))
+    halves = {half_of(dataclasses.replace(a, distance_m=d)) for d in (0.6, 0.8, 1.0, 1.2, 1.4)}
+    assert halves == set(HALVES)  # the placement moves cases between halves too
+
+
+def test_bad_half_is_a_config_error() -> None:
+    with pytest.raises(ConfigError, match="use tune, held-out or all"):
+        select_half([], "train")
+
+
+def _with_events(d: dict[str, Any], *events: tuple[str, int]) -> dict[str, Any]:
+    d["events"] = [{"kind": k, "frame": f, "t": f / 30} for k, f in events]
+    return d
+
+
+@pytest.mark.parametrize(
+    ("frames", "late"),
+    [
+        (range(40, 50), 0),   # ends within 2 s (60 frames) of the change at frame 30
+        (range(40, 95), 1),   # still reported at frame 94 > 30 + 60
+        (range(100, 110), 1),  # begins more than 2 s after the change
+        (range(10, 95), 0),   # began before any change: not the change's fault
+    ],
+)
+def test_late_false_after_change(frames: range, late: int) -> None:
+    t = truth_from_dict(_with_events(doc(120, {}), ("object_placed", 30), ("drift_start", 5)))
+    r = evaluate(t, track(9, frames, (100, 100)))
+    assert r.change_frames == (30,)
+    assert late_false_after_change(r) == late
+
+
+def test_no_change_no_late_false() -> None:
+    t = truth_from_dict(_with_events(doc(120, {}), ("arm_rest_start", 30)))
+    r = evaluate(t, track(9, range(40, 110), (100, 100)))
+    assert r.change_frames == () and late_false_after_change(r) == 0
+
+
+def _recording(found: bool, false_hover_mm: float | None = None):
+    c = {f: [contact(1, 300, 200)] for f in range(5, 20)}
+    h = {f: [hover(2, 100, 100, false_hover_mm)] for f in range(25, 40)} if false_hover_mm else {}
+    ev = track(1, range(5, 20), (300, 200)) if found else []
+    if false_hover_mm:
+        ev += track(7, range(30, 35), (100, 100))
+    return evaluate(truth_from_dict(doc(60, c, h)), ev)
+
+
+def test_figures_count_far_and_drift_apart() -> None:
+    rs = [_recording(True), _recording(False), _recording(False, 30.0), _recording(True, 8.0)]
+    f = figures(rs, far=[False, True, False, False], drift=[False, False, True, True])
+    assert f["recordings"] == 4 and f["contacts"] == 4
+    assert f["recall_working"] == pytest.approx(2 / 3, abs=1e-4)
+    assert f["recall_far"] == 0.0
+    assert f["recall_drift"] == 0.5
+    assert f["false_touches"] == 2 and f["false_from_hover_25mm"] == 1
+    assert f["false_per_min"] == pytest.approx(2 / (4 * 2.0 / 60), abs=1e-4)
+    assert f["recall_far"] is not None
+    assert figures(rs[:1], far=[False])["recall_far"] is None
+
+
+def test_report_puts_halves_side_by_side_per_situation() -> None:
+    suite = suite_from_dict({"suite": {"name": "t"}, "group": [
+        {"name": "near", "scenes": ["approach"], "cameras": ["kinect-v2-hard"],
+         "distances_m": [1.0], "seeds": [1, 2]},
+        {"name": "far", "scenes": ["approach"], "cameras": ["realsense-d435-hard"],
+         "distances_m": [1.6], "seeds": [1, 2], "tags": ["far"]},
+    ]})
+    cases = list(suite.cases)
+    results = [_recording(True), _recording(True), _recording(False), _recording(False)]
+    rep = halves_report(suite, cases, results)
+    assert set(rep["overall"]) == set(HALVES)
+    assert set(rep["situations"]) == {"near", "far"}
+    for h in HALVES:
+        assert rep["overall"][h]["recall_working"] == 1.0
+        assert rep["overall"][h]["recall_far"] == 0.0
+        assert rep["situations"]["far"][h]["recall_working"] is None
+    rows = overall_rows(rep)
+    assert rows[0] == ["recordings", "2", "2"]
+    srows = situation_rows(rep)
+    assert [r[:2] for r in srows] == [["near", "tune"], ["near", "held-out"], ["far", "tune"],
+                                      ["far", "held-out"]]
+    assert all(r[3] in ("1.000", "0.000") for r in srows)
+    assert not any(isinstance(v, float) and math.isnan(v) for v in rep["overall"]["tune"].values())
+
+
+@pytest.mark.parametrize(("argv", "needle"), [
+    (["eval", "--half", "tune"], "--half needs --suite NAME"),
+    (["eval", "--suite", "hard", "--subset", "nope", "--half", "tune"], "has no subset 'nope'"),
+])
+def test_cli_half_errors_are_one_line(argv: list[str], needle: str,
+                                      capsys: pytest.CaptureFixture[str]) -> None:
+    from depthtouch.cli import main
+
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert needle in err and err.count("\n") == 1
