@@ -10,7 +10,8 @@ Writes docs/accuracy.md and docs/figures/accuracy-*.png:
 5. curved (convex / concave cylinder) versus flat surfaces;
 6. the hard suite (``--suite hard``), its tune and held-out halves side by side, per situation.
 
-Run: ``.venv/bin/python benchmarks/experiments.py [--quick] [--workers 2]``. Recordings are
+Run: ``.venv/bin/python benchmarks/experiments.py [--quick] [--workers 2] [--only hard]`` (with
+``--only``, the other sections of the existing file are kept as they were). Recordings are
 rendered once and cached (.cache/depthtouch/suite); ``--quick`` uses fewer distances and seeds.
 """
 
@@ -75,13 +76,13 @@ def _ranges(ok: Sequence[float], all_d: Sequence[float]) -> str:
 
 
 def _git_head() -> str:
-    head = ROOT / ".git" / "HEAD"
-    try:
-        ref = head.read_text().strip()
-        if ref.startswith("ref: "):
-            return (ROOT / ".git" / ref[5:]).read_text().strip()[:10]
-        return ref[:10]
-    except OSError:
+    import subprocess
+
+    try:  # works in a git worktree too, where .git is a file
+        out = subprocess.run(["git", "-C", str(ROOT), "rev-parse", "HEAD"], capture_output=True,
+                             text=True, check=True, timeout=10)
+        return out.stdout.strip()[:10]
+    except (OSError, subprocess.SubprocessError):
         return "unknown"
 
 
@@ -143,6 +144,7 @@ class Experiments:
     def __init__(self, out: Path, figures: Path, workers: int, quick: bool) -> None:
         self.out, self.figures, self.workers, self.quick = out, figures, workers, quick
         self.md: list[str] = []
+        self.keep_others = False  # --only: keep the sections of the steps not run
         self.timings: dict[str, float] = {}
 
     def run(self, cases: list[SuiteCase], config: PipelineConfig | None = None) -> list[EvalResult]:
@@ -414,10 +416,35 @@ class Experiments:
             f"run at {time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())} on the working tree "
             f"of commit {_git_head()}; "
             f"{self.workers} worker processes; run took {total_s:.0f} s "
-            f"({', '.join(f'{k} {v:.0f} s' for k, v in self.timings.items())}).",
+            f"({', '.join(f'{k} {v:.0f} s' for k, v in self.timings.items())})"
+            + ("; the other sections were kept from an earlier run." if self.keep_others
+               else "."),
             "",
         ]
-        self.out.write_text("\n".join(head + self.md) + "\n", encoding="utf-8")
+        body = self.md
+        if self.keep_others and self.out.exists():
+            body = _splice(self.out.read_text(encoding="utf-8"), self.md)
+        self.out.write_text("\n".join(head + body) + "\n", encoding="utf-8")
+
+
+def _sections(lines: Sequence[str]) -> dict[str, list[str]]:
+    """Level-2 sections ("## 6. ...") of markdown lines, keyed by their number."""
+    out: dict[str, list[str]] = {}
+    key = None
+    for line in lines:
+        if line.startswith("## "):
+            key = line[3:].split(".")[0]
+            out[key] = []
+        if key is not None:
+            out[key].append(line)
+    return out
+
+
+def _splice(old_text: str, new: Sequence[str]) -> list[str]:
+    """The new sections, with the old file's other sections kept (``--only``), by number."""
+    merged = _sections(old_text.rstrip("\n").split("\n")) | _sections(new)
+    keys = sorted(merged, key=lambda k: (not k.isdigit(), int(k) if k.isdigit() else 0, k))
+    return [line for k in keys for line in merged[k]]
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -432,6 +459,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     figures = out.parent / "figures"
     figures.mkdir(parents=True, exist_ok=True)
     ex = Experiments(out, figures, a.workers, a.quick)
+    ex.keep_others = bool(a.only)
     steps = (a.only or "suite,distance,statistic,thresholds,curved,hard").split(",")
     t0 = time.perf_counter()
     for step in steps:

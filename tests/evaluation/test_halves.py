@@ -74,6 +74,13 @@ def test_late_false_after_change(frames: range, late: int) -> None:
     assert late_false_after_change(r) == late
 
 
+def test_false_touches_near_a_hovering_finger_are_not_the_surfaces() -> None:
+    d = doc(120, {}, {f: [hover(3, 100, 100, 12.0)] for f in range(90, 110)})
+    t = truth_from_dict(_with_events(d, ("object_removed", 30)))
+    r = evaluate(t, track(9, range(100, 110), (100, 100)))
+    assert late_false_after_change(r) == 0
+
+
 def test_no_change_no_late_false() -> None:
     t = truth_from_dict(_with_events(doc(120, {}), ("arm_rest_start", 30)))
     r = evaluate(t, track(9, range(40, 110), (100, 100)))

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from depthtouch.sim import CAMERAS, HARD_CAMERAS, HARD_SCENES, PROFILES, finger_label, render_scene
-from depthtouch.sim.artefacts import fatten_edges, multipath, speckle_holes
+from depthtouch.sim.artefacts import fatten_edges, match_window, multipath, speckle_holes
 from depthtouch.sim.cameras import NoiseModel, get_profile
 from depthtouch.sim.geometry import Capsule, Rays, make_surface
 from depthtouch.sim.hardscenes import LABEL_REST_HAND, free_yaw
@@ -240,3 +240,14 @@ def test_speckle_holes_grow_with_depth() -> None:
     far = sum(speckle_holes((480, 848), 150.0, 1600.0, np.random.default_rng(s)).sum()
               for s in range(5))
     assert far > 4 * near > 0
+
+
+def test_matching_window_loses_thin_structures_and_keeps_wide_ones() -> None:
+    z = np.full((40, 40), 1600.0, np.float32)
+    z[5:35, 5:7] = 1580.0  # 2 px wide: a finger at range
+    z[5:35, 20:26] = 1580.0  # 6 px wide
+    z[0, 0] = 0.0  # no surface stays no surface
+    out = match_window(z, 5)
+    assert np.all(out[8:32, 5:7] == 1600.0)
+    assert np.all(out[8:32, 21:25] == 1580.0)
+    assert out[0, 0] == 0.0 and match_window(z, 0) is z

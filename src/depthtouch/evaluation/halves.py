@@ -61,15 +61,20 @@ def select_half(cases: Sequence[SuiteCase], half: str) -> list[SuiteCase]:
 
 
 def late_false_after_change(r: EvalResult, after_s: float = LATE_AFTER_CHANGE_S) -> int:
-    """False tracks that began at or after a surface change and were still reported more than
-    ``after_s`` seconds after it (the latest change before the track's first frame)."""
+    """False tracks of the changed surface that outlive the change by more than ``after_s``.
+
+    Counted: false tracks near no hovering fingertip (those are the hand's, counted elsewhere)
+    that began at or after a surface change (an object put down or taken away, a bump) and were
+    still reported more than ``after_s`` seconds after the latest change before their start.
+    """
     if not r.change_frames or r.false_frame.size == 0:
         return 0
     fps = r.n_frames / r.duration_s if r.duration_s > 0 else 30.0
     n = 0
-    for first, last in zip(r.false_frame.tolist(), r.false_last.tolist(), strict=True):
+    for first, last, h in zip(r.false_frame.tolist(), r.false_last.tolist(),
+                              r.false_hover_height_mm.tolist(), strict=True):
         before = [c for c in r.change_frames if c <= first]
-        if before and last - before[-1] > after_s * fps:
+        if before and last - before[-1] > after_s * fps and not math.isfinite(h):
             n += 1
     return n
 

@@ -11,6 +11,9 @@ model what the unseen recordings showed and the default profiles leave out:
   exactly where a fingertip meets the surface.
 - **edge fattening** (stereo): block matching spreads the nearer side of a depth edge over the
   farther side by a pixel or two; which pixels take the near depth changes every frame.
+- **matching window** (stereo): depth comes from matching a window of pixels, so structures
+  thinner than about half the window (a finger seen from afar) fade into what surrounds them
+  and a fingertip's end retreats: a median over ``window_px`` x ``window_px`` of the geometry;
 - **speckle holes** (stereo at range): small blobs (radius 1-3 px) with no depth, scattered over
   the frame; their number grows with the squared depth (fewer matches at range).
 """
@@ -84,3 +87,12 @@ def speckle_holes(shape: tuple[int, int], per_mpx: float, depth_mm: float,
         for x, y, r in zip(xs.tolist(), ys.tolist(), rs.tolist(), strict=True):
             cv2.circle(mask, (x, y), r, 1, -1)
     return mask.astype(bool)
+
+
+def match_window(z: np.ndarray, window_px: int) -> np.ndarray:
+    """The noise-free depth as a stereo matcher with a ``window_px`` window (3 or 5) sees it:
+    a median, so that thin structures vanish and edges stay sharp (0 = no surface is kept)."""
+    if window_px <= 1:
+        return z
+    out: np.ndarray = cv2.medianBlur(np.ascontiguousarray(z, dtype=np.float32), window_px)
+    return np.where(z > 0, out, np.float32(0.0)).astype(np.float32)

@@ -26,7 +26,7 @@ import cv2
 import numpy as np
 
 from ..errors import ConfigError
-from .artefacts import fatten_edges, multipath, speckle_holes
+from .artefacts import fatten_edges, match_window, multipath, speckle_holes
 
 
 @dataclass(frozen=True)
@@ -52,6 +52,7 @@ class CameraProfile:
     multipath_mm, multipath_reach_mm: ToF multipath bias near low hand parts (sim/artefacts.py).
     fatten_px, fatten_prob: stereo edge fattening: reach (px) and probability per frame.
     speckle_per_mpx: stereo speckle holes per megapixel and frame at 1 m (grows with z^2).
+    window_px: stereo matching window (3 or 5; 0 = none): thin structures fade.
     """
 
     name: str
@@ -78,6 +79,7 @@ class CameraProfile:
     fatten_px: int = 0
     fatten_prob: float = 0.0
     speckle_per_mpx: float = 0.0
+    window_px: int = 0
 
     @property
     def K(self) -> np.ndarray:
@@ -141,7 +143,7 @@ HARD_PROFILES: dict[str, CameraProfile] = {
     ),
     "realsense-d435-hard": replace(
         PROFILES["realsense-d435"], name="realsense-d435-hard", noise_scale_range=(0.9, 1.5),
-        fatten_px=2, fatten_prob=0.6, speckle_per_mpx=150.0,
+        fatten_px=2, fatten_prob=0.6, speckle_per_mpx=150.0, window_px=5,
     ),
     "kinect-v1-hard": replace(
         PROFILES["kinect-v1"], name="kinect-v1-hard", noise_scale_range=(0.9, 1.3),
@@ -310,7 +312,7 @@ class NoiseModel:
         x0, y0 = max(box[0] - 2, 0), max(box[1] - 2, 0)
         x1, y1 = min(box[2] + 2, w), min(box[3] + 2, h)
         sl = (slice(y0, y1), slice(x0, x1))
-        zb = z[sl]
+        zb = z[sl] if p.window_px <= 1 else match_window(z[sl], p.window_px)
         sigma, add, bad = self._maps(zb)
         nb = zb + add * eps[sl] + sigma * self.bias[sl]
         edge_missing, fly = self._edge_effects(zb, sigma, nb)

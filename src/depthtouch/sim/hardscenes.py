@@ -181,7 +181,6 @@ def scene_handled(ctx: SceneContext) -> Script:
     tr.to(0.6, gap=hold_gap)
     t_placed = tr.end_s
     tr.hold(0.3).to(0.3, gap=UP_MM)
-    rest = (t_placed, 0.0)
 
     def near_box(st: np.ndarray) -> bool:
         rel = st - centre
@@ -195,15 +194,14 @@ def scene_handled(ctx: SceneContext) -> Script:
     t_pick = tr.end_s
     tr.to(0.5, gap=hold_gap + 150.0)
     ctx.leave(tr)
-    track = tr
 
     def build(t: float) -> list[Primitive]:
-        if t < t_carry_in or t > track.end_s:
+        if t < t_carry_in or t > tr.end_s:
             return []
-        if rest[0] <= t <= t_pick:
+        if t_placed <= t <= t_pick:
             st, lift = centre, 0.0
         else:
-            c = track.at(t)
+            c = tr.at(t)
             st = np.array([c["s"], c["t"]]) - off
             lift = max(0.0, c["gap"] - hold_gap)
         n = s.normal(st[None])[0]
