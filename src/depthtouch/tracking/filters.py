@@ -42,9 +42,9 @@ from ..errors import ConfigError
 
 FILTERS: tuple[str, ...] = ("none", "lowpass", "kalman", "adaptive", "one_euro", "adaptive_euro")
 
-#: The filter the pipeline should use by default, chosen by ``depthtouch bench-filters``: it
-#: beats raw on angle error and jitter and adds less than one frame of lag at 30 fps.
-DEFAULT_FILTER = "adaptive"
+#: The filter the pipeline uses by default, chosen by measurement on the hard suite's tune half
+#: (docs/filters.md): the adaptive filter's turns and lag, with a finger at rest held still.
+DEFAULT_FILTER = "adaptive_euro"
 
 
 @runtime_checkable
@@ -422,6 +422,10 @@ class AdaptiveEuroFilter(FilterBase):
     beta_per_mm: rise of the cutoff with speed above rest, Hz per mm/s, range [0, 100],
         default 0.2 (at 100 mm/s above rest the cutoff is 20 Hz).
     speed_cutoff_hz: cutoff of the speed estimate, range (0, 1000], default 3.0.
+    hold_mm: the stage's weight rises toward 1 with the gap g between its output and the
+        adaptive stage's, ``a + (1 − a)·(1 − 2^(−(g/hold_mm)²))``: a gap the noise cannot
+        explain (a tip that landed off its first measurement) is closed at once; range
+        (0, 1000], default 3.0 mm.
     Defaults chosen by measurement (docs/filters.md).
     """
 
@@ -433,6 +437,7 @@ class AdaptiveEuroFilter(FilterBase):
         "rest_mm_s": Param(40.0, 0.0, 1000.0, lo_open=False),
         "beta_per_mm": Param(0.2, 0.0, 100.0, lo_open=False),
         "speed_cutoff_hz": Param(3.0, 0.0, 1000.0),
+        "hold_mm": Param(3.0, 0.0, 1000.0),
     }
     # the adaptive stage's position (mm) and velocity (mm/s); the smoothed speed vector (mm/s)
     _FIELDS = {"p": (2,), "v": (2,), "dx": (2,)}
@@ -461,7 +466,12 @@ class AdaptiveEuroFilter(FilterBase):
         speed = np.hypot(dx[:, 0], dx[:, 1])
         cutoff = prm["rest_cutoff_hz"] + prm["beta_per_mm"] * np.maximum(0.0, speed - prm["rest_mm_s"])
         prev = s[:, 0:2]
-        return prev + smoothing_factor(dt_s, cutoff)[:, None] * (p - prev)
+        gap = p - prev
+        a = smoothing_factor(dt_s, cutoff)
+        # a gap the noise cannot explain (a tip that landed off its first measurement, a start)
+        # is closed at once, as the adaptive stage's weight does
+        a = a + (1.0 - a) * (1.0 - np.exp2(-((np.hypot(gap[:, 0], gap[:, 1]) / prm["hold_mm"]) ** 2)))
+        return prev + a[:, None] * gap
 
 
 _CLASSES: dict[str, type[FilterBase]] = {
