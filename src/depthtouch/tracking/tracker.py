@@ -5,11 +5,14 @@ on their distance, gated (mm when the surface scale is known, px otherwise): con
 first, then pending ones on the points left. Fingertips side by side whose regions merged into one
 point (a region about twice a tip's area) keep their ids and move with that point, each at its
 place in the pair; a contact hidden in a neighbour's region is held. A new contact goes
-``down`` after ``down_frames`` consecutive frames; a contact missing for ``up_frames`` consecutive
-frames goes ``up`` with its last position (it is reported as ``move`` at that position during the
-grace frames). Height hysteresis: a tip must come below ``touch_on_mm`` to start a contact, and a
-contact lasts while its tip stays below ``touch_off_mm``, so that a finger resting at the noise
-limit does not flicker. Ids are never reused within a run.
+``down`` once its evidence reaches ``down_frames``: consecutive frames, each counting 1 when its
+region has a fingertip's area in mm² and ``weak_evidence`` otherwise (a speck at a finger's
+edge, a hovering finger or a forearm's edge lying in the band); a contact missing for
+``up_frames`` consecutive frames goes ``up`` with its last position (it is reported as ``move``
+at that position during the grace frames). Height hysteresis: a tip must come below
+``touch_on_mm`` to start a contact, and a contact lasts while its tip stays below
+``touch_off_mm``, so that a finger resting at the noise limit does not flicker. Ids are never
+reused within a run.
 """
 
 from __future__ import annotations
