@@ -267,6 +267,29 @@ def test_adaptive_follows_a_jump_and_smooths_noise():
     assert g.update(np.array([0]), np.array([[160.0, 100.0]]), 2.0 + 1 / 30)[0, 0] < 150.0
 
 
+
+def test_adaptive_euro_holds_a_still_finger_and_follows_a_drag():
+    """At rest the 1€ stage holds: 1 mm noise is cut to under a third (the adaptive filter alone
+    keeps half of it); a tip that lands 8 mm off is followed in the same frame (most of the way,
+    as by the adaptive stage; a 0.3 Hz stage alone would move 0.5 mm); on a
+    400 mm/s drag the speed opens the cutoff: under 2 mm behind (a
+    30 fps frame is 13 mm of that drag)."""
+    rng = np.random.default_rng(5)
+    t = np.arange(90) / 30
+    still = 100.0 + rng.normal(0, 1.0, (90, 2))
+    held = _run(make_filter("adaptive_euro"), t, still)
+    plain = _run(make_filter("adaptive"), t, still)
+    assert np.std(held[30:], axis=0).max() < 0.33 * np.std(still[30:], axis=0).min()
+    assert np.std(held[30:], axis=0).max() < 0.65 * np.std(plain[30:], axis=0).min()
+    drag = np.stack([400.0 * t, 0 * t], axis=1) + rng.normal(0, 1.0, (90, 2))
+    out = _run(make_filter("adaptive_euro"), t, drag)
+    behind = 400.0 * t[-30:] - out[-30:, 0]
+    assert np.median(behind) < 2.0
+    f = make_filter("adaptive_euro")
+    _run(f, t, np.full((90, 2), 100.0))
+    assert f.update(np.array([0]), np.array([[108.0, 100.0]]), 3.0)[0, 0] > 106.0
+
+
 # --- golden: the authors' 1€ implementation ------------------------------------------------------
 def _reference_one_euro(t, x, min_cutoff, beta, d_cutoff):
     """The PyPI OneEuroFilter on each axis, with two of its quirks worked around here:

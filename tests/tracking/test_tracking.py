@@ -9,6 +9,13 @@ from depthtouch.tracking.tracker import Track, Tracker
 from depthtouch.types import TouchPoints
 
 
+def _cfg(**kw: object) -> TrackingConfig:
+    """The tracking config of the id tests: every frame counts whole toward down (the points
+    here have no fingertip's area; the evidence by size has its own tests)."""
+    kw.setdefault("weak_evidence", 1.0)
+    return TrackingConfig(**kw)  # type: ignore[arg-type]
+
+
 def pts(*xyh: tuple[float, float, float]) -> TouchPoints:
     if not xyh:
         return TouchPoints.empty()
@@ -21,24 +28,24 @@ def run(tracker: Tracker, frames: list[TouchPoints]) -> list[list[tuple[int, str
 
 
 def test_down_after_m_frames_up_after_grace():
-    tr = Tracker(TrackingConfig(down_frames=2, up_frames=2), scale_mm_per_px=1.0)
+    tr = Tracker(_cfg(down_frames=2, up_frames=2), scale_mm_per_px=1.0)
     out = run(tr, [pts((10, 10, 5)), pts((11, 10, 5)), pts((12, 10, 5)), pts(), pts(), pts()])
     assert out == [[], [(1, "down")], [(1, "move")], [(1, "move")], [(1, "up")], []]
 
 
 def test_single_frame_blip_never_goes_down():
-    tr = Tracker(TrackingConfig(down_frames=2), scale_mm_per_px=1.0)
+    tr = Tracker(_cfg(down_frames=2), scale_mm_per_px=1.0)
     assert run(tr, [pts((10, 10, 5)), pts(), pts((200, 10, 5)), pts()]) == [[], [], [], []]
 
 
 def test_grace_bridges_a_missing_frame_with_same_id():
-    tr = Tracker(TrackingConfig(down_frames=1, up_frames=3), scale_mm_per_px=1.0)
+    tr = Tracker(_cfg(down_frames=1, up_frames=3), scale_mm_per_px=1.0)
     out = run(tr, [pts((10, 10, 5)), pts(), pts((12, 10, 5))])
     assert out == [[(1, "down")], [(1, "move")], [(1, "move")]]
 
 
 def test_ids_follow_crossing_paths_and_are_never_reused():
-    tr = Tracker(TrackingConfig(down_frames=1, up_frames=1, gate_mm=30), scale_mm_per_px=1.0)
+    tr = Tracker(_cfg(down_frames=1, up_frames=1, gate_mm=30), scale_mm_per_px=1.0)
     ids_a, ids_b = [], []
     for i in range(20):
         a, b = (100 + 5 * i, 100.0, 5.0), (200 - 5 * i, 108.0, 5.0)
@@ -54,7 +61,7 @@ def test_ids_follow_crossing_paths_and_are_never_reused():
 
 def test_fast_drag_keeps_its_id_with_prediction():
     # 35 px per frame at 1 mm/px: beyond a 30 mm gate without the velocity prediction
-    tr = Tracker(TrackingConfig(down_frames=1, up_frames=1, gate_mm=30), scale_mm_per_px=1.0)
+    tr = Tracker(_cfg(down_frames=1, up_frames=1, gate_mm=30), scale_mm_per_px=1.0)
     ids: set[int] = set()
     for i in range(10):
         x = 100 + 20 * i if i < 2 else 120 + 35 * (i - 1)
@@ -63,7 +70,7 @@ def test_fast_drag_keeps_its_id_with_prediction():
 
 
 def test_jump_beyond_gate_is_a_new_touch():
-    tr = Tracker(TrackingConfig(down_frames=1, up_frames=1, gate_mm=40), scale_mm_per_px=2.0)
+    tr = Tracker(_cfg(down_frames=1, up_frames=1, gate_mm=40), scale_mm_per_px=2.0)
     run(tr, [pts((10, 10, 5))])
     out = run(tr, [pts((40, 10, 5))])  # 30 px = 60 mm
     assert sorted(out[0]) == [(1, "up"), (2, "down")]
@@ -78,7 +85,7 @@ def test_jump_beyond_gate_is_a_new_touch():
     ],
 )
 def test_height_hysteresis(heights, expected_active):
-    tr = Tracker(TrackingConfig(down_frames=2, up_frames=2),
+    tr = Tracker(_cfg(down_frames=2, up_frames=2),
                  TouchPointConfig(touch_on_mm=14, touch_off_mm=18), scale_mm_per_px=1.0)
     active = []
     for h in heights:
@@ -88,7 +95,7 @@ def test_height_hysteresis(heights, expected_active):
 
 
 def test_end_all_and_reset():
-    tr = Tracker(TrackingConfig(down_frames=1), scale_mm_per_px=1.0)
+    tr = Tracker(_cfg(down_frames=1), scale_mm_per_px=1.0)
     tr.update(pts((1, 1, 5), (50, 50, 5)))
     ended = tr.end_all()
     assert sorted(u.track.id for u in ended) == [1, 2] and all(u.state == "up" for u in ended)
@@ -98,7 +105,7 @@ def test_end_all_and_reset():
 
 def test_fingertips_merging_keep_their_ids():
     # two tips 20 mm apart merge into one point for 4 frames, then separate again
-    tr = Tracker(TrackingConfig(down_frames=1, up_frames=2, merge_mm=25, merge_frames=10),
+    tr = Tracker(_cfg(down_frames=1, up_frames=2, merge_mm=25, merge_frames=10),
                  scale_mm_per_px=1.0)
     run(tr, [pts((100, 100, 5), (120, 100, 5))])
     merged = run(tr, [pts((110, 100, 5))] * 4)
@@ -108,7 +115,7 @@ def test_fingertips_merging_keep_their_ids():
 
 
 def test_a_merged_tip_that_never_comes_back_goes_up():
-    tr = Tracker(TrackingConfig(down_frames=1, up_frames=2, merge_mm=25, merge_frames=3),
+    tr = Tracker(_cfg(down_frames=1, up_frames=2, merge_mm=25, merge_frames=3),
                  scale_mm_per_px=1.0)
     run(tr, [pts((100, 100, 5), (120, 100, 5))])
     out = run(tr, [pts((110, 100, 5))] * 6)
@@ -195,19 +202,19 @@ ID_CASES = {
 
 @pytest.mark.parametrize("frames, expected", list(ID_CASES.values()), ids=list(ID_CASES))
 def test_ids_stay_with_their_fingers(frames, expected):
-    tr = Tracker(TrackingConfig(), scale_mm_per_px=1.0)
+    tr = Tracker(_cfg(), scale_mm_per_px=1.0)
     assert _ids_of_last_frame(tr, frames) == expected
 
 
 def test_merge_area_ratio_zero_turns_merged_pairs_off():
     frames, _ = ID_CASES["merged pair dragged together"]
-    tr = Tracker(TrackingConfig(merge_area_ratio=0.0), scale_mm_per_px=1.0)
+    tr = Tracker(_cfg(merge_area_ratio=0.0), scale_mm_per_px=1.0)
     assert _ids_of_last_frame(tr, frames) != [1, 2]  # the hidden contact stayed behind
 
 
 def test_a_large_region_alone_is_not_a_merge():
     # one finger pressed flat (area doubles) next to a contact that lifted: the lifted one goes up
-    tr = Tracker(TrackingConfig(up_frames=1, merge_frames=0), scale_mm_per_px=1.0)
+    tr = Tracker(_cfg(up_frames=1, merge_frames=0), scale_mm_per_px=1.0)
     run(tr, _STILL_PAIR)
     out = run(tr, [pts_area((100, 100, 5, 120))])
     assert sorted(out[0]) == [(1, "move"), (2, "up")]
@@ -220,7 +227,7 @@ def test_a_large_region_alone_is_not_a_merge():
 def test_cost_in_floats_equals_cost_in_arrays(seed, n_t, n_p, scaled):
     """Both ways give the same doubles, also for points a rounding error off the gate."""
     rng = np.random.default_rng(seed)
-    tr = Tracker(TrackingConfig(), scale_mm_per_px=1.3 if scaled else None)
+    tr = Tracker(_cfg(), scale_mm_per_px=1.3 if scaled else None)
     gate = tr.gate
     tr.tracks = [
         Track(
@@ -264,10 +271,39 @@ def test_many_touches_same_tracks_with_floats_or_arrays(n, monkeypatch):
     frames = _moving_fingers(n, 20)
 
     def replay() -> list[list[tuple[int, str, tuple[float, float]]]]:
-        tr = Tracker(TrackingConfig(), scale_mm_per_px=1.0)
+        tr = Tracker(_cfg(), scale_mm_per_px=1.0)
         return [[(u.track.id, u.state, u.track.xy_px) for u in tr.update(f)] for f in frames]
 
     default = replay()
     monkeypatch.setattr(tracking, "_PY_COST_MAX", 0 if n < 10 else 10**6)
     assert replay() == default
     assert {i for f in default for i, _, _ in f} == set(range(1, n + 1))
+
+
+def _tip(area_px: float, h: float = 5.0) -> TouchPoints:
+    return pts_area((100.0, 100.0, h, area_px))
+
+
+@pytest.mark.parametrize(("area_px", "down_at"), [
+    (300, 2),    # a fingertip's region (300 mm^2 at 1 mm/px): down on the second frame, as before
+    (40, 5),     # a speck at a finger's edge: 5 frames of weak evidence (0.4 each) make 2
+    (2000, 5),   # a hovering finger lying in the band
+])
+def test_down_needs_evidence_by_size(area_px: float, down_at: int) -> None:
+    tr = Tracker(TrackingConfig(down_frames=2), scale_mm_per_px=1.0)
+    states = [[s for _, s in f] for f in run(tr, [_tip(area_px)] * 6)]
+    first = next(i for i, f in enumerate(states) if f == ["down"]) + 1
+    assert first == down_at
+
+
+def test_a_blip_off_size_never_goes_down_and_its_evidence_does_not_carry() -> None:
+    tr = Tracker(TrackingConfig(down_frames=2), scale_mm_per_px=1.0)
+    # four frames of a speck, a frame without it, four more: never 5 in a row
+    frames = [_tip(40)] * 4 + [pts()] + [_tip(40)] * 4
+    assert all(f == [] for f in run(tr, frames))
+
+
+def test_evidence_by_size_is_off_without_a_scale_or_at_weight_1() -> None:
+    for tr in (Tracker(TrackingConfig(down_frames=2)),
+               Tracker(TrackingConfig(down_frames=2, weak_evidence=1.0), scale_mm_per_px=1.0)):
+        assert [[s for _, s in f] for f in run(tr, [_tip(40)] * 2)] == [[], ["down"]]

@@ -11,6 +11,9 @@ Five filters, selectable by name (:data:`FILTERS`) through :func:`make_filter`:
 - ``one_euro``: the 1€ filter (Casiez, Roussel, Vogel, CHI 2012), ``fc = min_cutoff +
   beta·|dx/dt|``, numerically the same as the authors' reference implementation (PyPI
   ``OneEuroFilter``).
+- ``adaptive_euro``: the adaptive filter followed by a 1€ stage whose cutoff follows the speed
+  (the norm of the velocity, the same on both axes): a finger at rest is held still, a drag
+  passes with the adaptive filter's lag.
 
 Every filter keeps its state per touch id in arrays, so one frame's update runs over all active
 touches at once. Positions are millimetres on the surface, so the parameters are physical.
@@ -37,11 +40,11 @@ import numpy as np
 from ..config import FilterConfig
 from ..errors import ConfigError
 
-FILTERS: tuple[str, ...] = ("none", "lowpass", "kalman", "adaptive", "one_euro")
+FILTERS: tuple[str, ...] = ("none", "lowpass", "kalman", "adaptive", "one_euro", "adaptive_euro")
 
-#: The filter the pipeline should use by default, chosen by ``depthtouch bench-filters``: it
-#: beats raw on angle error and jitter and adds less than one frame of lag at 30 fps.
-DEFAULT_FILTER = "adaptive"
+#: The filter the pipeline uses by default, chosen by measurement on the hard suite's tune half
+#: (docs/filters.md): the adaptive filter's turns and lag, with a finger at rest held still.
+DEFAULT_FILTER = "adaptive_euro"
 
 
 @runtime_checkable
@@ -403,8 +406,77 @@ class OneEuroFilter(FilterBase):
         return prev + smoothing_factor(dt, cutoff) * (xy - prev)
 
 
+class AdaptiveEuroFilter(FilterBase):
+    """``adaptive_euro``: the adaptive filter, then a 1€ stage on its output.
+
+    The adaptive stage (``min_cutoff_hz``, ``half_weight_mm``, as :class:`AdaptiveFilter`) follows
+    turns and speed changes at once but leaves most of a still finger's noise. The 1€ stage
+    smooths its output with the cutoff ``rest_cutoff_hz + beta_per_mm·max(0, s − rest_mm_s)``,
+    s the speed of the adaptive stage's output (its step per dt, as a vector low-passed at
+    ``speed_cutoff_hz``, then its norm: both axes get one cutoff, so a path keeps its
+    direction). Below ``rest_mm_s`` (the speed noise of a finger at rest) the cutoff stays at
+    ``rest_cutoff_hz``; a drag raises it so far that the stage adds almost no lag.
+
+    rest_cutoff_hz: cutoff of a finger at rest, range (0, 1000], default 0.3.
+    rest_mm_s: speed taken as rest, range [0, 1000], default 40 mm/s.
+    beta_per_mm: rise of the cutoff with speed above rest, Hz per mm/s, range [0, 100],
+        default 0.2 (at 100 mm/s above rest the cutoff is 20 Hz).
+    speed_cutoff_hz: cutoff of the speed estimate, range (0, 1000], default 3.0.
+    hold_mm: the stage's weight rises toward 1 with the gap g between its output and the
+        adaptive stage's, ``a + (1 − a)·(1 − 2^(−(g/hold_mm)²))``: a gap the noise cannot
+        explain (a tip that landed off its first measurement) is closed at once; range
+        (0, 1000], default 3.0 mm.
+    Defaults chosen by measurement (docs/filters.md).
+    """
+
+    name = "adaptive_euro"
+    PARAMS = {
+        "min_cutoff_hz": Param(3.0, 0.0, 1000.0),
+        "half_weight_mm": Param(6.0, 0.0, 1000.0),
+        "rest_cutoff_hz": Param(0.3, 0.0, 1000.0),
+        "rest_mm_s": Param(40.0, 0.0, 1000.0, lo_open=False),
+        "beta_per_mm": Param(0.2, 0.0, 100.0, lo_open=False),
+        "speed_cutoff_hz": Param(3.0, 0.0, 1000.0),
+        "hold_mm": Param(3.0, 0.0, 1000.0),
+    }
+    # the adaptive stage's position (mm) and velocity (mm/s); the smoothed speed vector (mm/s)
+    _FIELDS = {"p": (2,), "v": (2,), "dx": (2,)}
+
+    def _init(self, rows: np.ndarray, xy: np.ndarray) -> None:
+        self._state["p"][rows] = xy
+        self._state["v"][rows] = 0.0
+        self._state["dx"][rows] = 0.0
+
+    def _step(self, s: np.ndarray, xy: np.ndarray, dt_s: np.ndarray) -> np.ndarray:
+        p_col, v_col, dx_col = self._COLS["p"], self._COLS["v"], self._COLS["dx"]
+        prm = self.params
+        v, p_old = s[:, v_col], s[:, p_col]
+        pred = p_old + v * dt_s[:, None]
+        innov = xy - pred
+        d_mm = np.hypot(innov[:, 0], innov[:, 1])
+        w0 = smoothing_factor(dt_s, prm["min_cutoff_hz"])
+        w = w0 + (1.0 - w0) * (1.0 - np.exp2(-((d_mm / prm["half_weight_mm"]) ** 2)))
+        beta = w * w / (2.0 - w)
+        p = pred + w[:, None] * innov
+        dt = dt_s[:, None]
+        dx = s[:, dx_col]
+        dx = dx + smoothing_factor(dt, prm["speed_cutoff_hz"]) * ((p - p_old) / dt - dx)
+        s[:, v_col] = v + (beta / dt_s)[:, None] * innov
+        s[:, p_col], s[:, dx_col] = p, dx
+        speed = np.hypot(dx[:, 0], dx[:, 1])
+        cutoff = prm["rest_cutoff_hz"] + prm["beta_per_mm"] * np.maximum(0.0, speed - prm["rest_mm_s"])
+        prev = s[:, 0:2]
+        gap = p - prev
+        a = smoothing_factor(dt_s, cutoff)
+        # a gap the noise cannot explain (a tip that landed off its first measurement, a start)
+        # is closed at once, as the adaptive stage's weight does
+        a = a + (1.0 - a) * (1.0 - np.exp2(-((np.hypot(gap[:, 0], gap[:, 1]) / prm["hold_mm"]) ** 2)))
+        return prev + a[:, None] * gap
+
+
 _CLASSES: dict[str, type[FilterBase]] = {
-    c.name: c for c in (NoFilter, LowPassFilter, KalmanFilter, AdaptiveFilter, OneEuroFilter)
+    c.name: c for c in (NoFilter, LowPassFilter, KalmanFilter, AdaptiveFilter, OneEuroFilter,
+                        AdaptiveEuroFilter)
 }
 assert tuple(_CLASSES) == FILTERS
 

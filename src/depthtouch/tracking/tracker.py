@@ -5,11 +5,14 @@ on their distance, gated (mm when the surface scale is known, px otherwise): con
 first, then pending ones on the points left. Fingertips side by side whose regions merged into one
 point (a region about twice a tip's area) keep their ids and move with that point, each at its
 place in the pair; a contact hidden in a neighbour's region is held. A new contact goes
-``down`` after ``down_frames`` consecutive frames; a contact missing for ``up_frames`` consecutive
-frames goes ``up`` with its last position (it is reported as ``move`` at that position during the
-grace frames). Height hysteresis: a tip must come below ``touch_on_mm`` to start a contact, and a
-contact lasts while its tip stays below ``touch_off_mm``, so that a finger resting at the noise
-limit does not flicker. Ids are never reused within a run.
+``down`` once its evidence reaches ``down_frames``: consecutive frames, each counting 1 when its
+region has a fingertip's area in mm² and ``weak_evidence`` otherwise (a speck at a finger's
+edge, a hovering finger or a forearm's edge lying in the band); a contact missing for
+``up_frames`` consecutive frames goes ``up`` with its last position (it is reported as ``move``
+at that position during the grace frames). Height hysteresis: a tip must come below
+``touch_on_mm`` to start a contact, and a contact lasts while its tip stays below
+``touch_off_mm``, so that a finger resting at the noise limit does not flicker. Ids are never
+reused within a run.
 """
 
 from __future__ import annotations
@@ -52,6 +55,7 @@ class Track:
     vel: XY = (0.0, 0.0)
     hand_at_border: bool = True
     merged: int = 0  # consecutive frames hidden in a neighbour's region
+    evidence: float = 0.0  # pending: frames of touch seen, each weighted by how tip-like it was
 
     def predicted(self) -> XY:
         """Where the contact should be this frame (constant velocity per frame)."""
@@ -183,6 +187,7 @@ class Tracker:
             for i in members:
                 shift[i] = (k, step)
         down_frames = self.config.down_frames
+        weight = self._evidence_weights(area)
         for i, t in enumerate(tracks):
             j = matched_t.get(i)
             if i in shift:
@@ -215,9 +220,10 @@ class Tracker:
                 t.seen += 1
                 t.missing = 0
                 t.merged = 0
+                t.evidence += weight[j]
                 if t.active:
                     out.append(TrackUpdate(t, "move", True))
-                elif t.seen >= down_frames:
+                elif t.evidence >= down_frames - 1e-9:
                     self._activate(t)
                     out.append(TrackUpdate(t, "down", True))
                 keep.append(t)
@@ -239,13 +245,31 @@ class Tracker:
         for j in range(n_p):
             if j in used or not ok_new[j]:
                 continue
-            t = Track(xy[j], pos[j], float(h[j]), int(area[j]), hand_at_border=border[j])
-            if down_frames <= 1:
+            t = Track(xy[j], pos[j], float(h[j]), int(area[j]), hand_at_border=border[j],
+                      evidence=weight[j])
+            if t.evidence >= down_frames - 1e-9:
                 self._activate(t)
                 out.append(TrackUpdate(t, "down", True))
             keep.append(t)
         self.tracks = keep
         return out
+
+    def _evidence_weights(self, area_px: list[int]) -> list[float]:
+        """How much one frame of each point counts toward ``down`` (see TrackingConfig).
+
+        A region of a fingertip's size (``tip_area_mm2`` range) counts a whole frame; a smaller
+        one (a speck of noise at a finger's edge, a tip only grazing the band) or a larger one
+        (a hovering finger or a forearm's edge lying in the band) counts ``weak_evidence``, so it
+        must persist for more frames before it is believed. Without a scale (no intrinsics) every
+        frame counts whole.
+        """
+        scale = self.scale_mm_per_px
+        weak = self.config.weak_evidence
+        if scale is None or weak >= 1.0:
+            return [1.0] * len(area_px)
+        lo, hi = self.config.tip_area_min_mm2, self.config.tip_area_max_mm2
+        px_mm2 = scale * scale
+        return [1.0 if lo <= a * px_mm2 <= hi else weak for a in area_px]
 
     def _cost(self, pos: list[XY], ok_cont: list[bool], ok_new: list[bool]) -> list[list[float]]:
         """Gated distance of each track to each point (_BIG where it may not take the point).
