@@ -22,7 +22,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests"))
 
 from depthtouch.pipeline import Pipeline  # noqa: E402
-from depthtouch.types import Frame  # noqa: E402
+from depthtouch.types import Frame, FrameResult  # noqa: E402
 from synth import Finger, render_heights  # noqa: E402
 
 RESOLUTIONS = [(512, 424), (640, 480), (848, 480), (1280, 720)]
@@ -83,21 +83,22 @@ class BenchCase:
         self.samples: dict[str, list[float]] = {s: [] for s in STAGES}
         self.found: list[int] = []
 
-    def _step(self, d: np.ndarray) -> None:
-        self.pipe.process(Frame(d, self.t, self.i, 0.001, self.K))
+    def _step(self, d: np.ndarray) -> FrameResult:
+        result = self.pipe.process(Frame(d, self.t, self.i, 0.001, self.K))
         self.t += 1 / 30
         self.i += 1
+        return result
 
     def block(self, n: int, timed: bool = True) -> None:
         """Process n frames (after a few untimed ones that bring the caches back)."""
         for _ in range(BLOCK_WARMUP if timed else 0):
             self._step(self.touch[self.i % len(self.touch)])
         for _ in range(n):
-            self._step(self.touch[self.i % len(self.touch)])
+            result = self._step(self.touch[self.i % len(self.touch)])
             if timed:
-                self.found.append(len(self.pipe.last_points))
+                self.found.append(len(result.points))
                 for s in STAGES:
-                    self.samples[s].append(self.pipe.last_timing_ms[s])
+                    self.samples[s].append(result.timing_ms[s])
 
     def result(self) -> dict[str, tuple[float, float]]:
         res = {s: (float(np.median(v)), float(np.percentile(v, 95)))
