@@ -37,7 +37,9 @@ def _add_common_outputs(p: argparse.ArgumentParser) -> None:
         "--tuio", metavar="HOST:PORT", nargs="?", const="127.0.0.1:3333",
         help="send TUIO 1.1 /tuio/2Dcur over UDP (default 127.0.0.1:3333)",
     )
-    p.add_argument("--calibration", help="screen calibration file (adds sx, sy to events)")
+    p.add_argument("--calibration", action="append",
+                   help="screen calibration file (adds sx, sy to events); several sources: "
+                        "one per source, in the same order")
     p.add_argument("--uinput", action="store_true",
                    help="also touch the desktop: a virtual touchscreen (Linux, docs/uinput.md)")
 
@@ -45,7 +47,8 @@ def _add_common_outputs(p: argparse.ArgumentParser) -> None:
 # --- replay -------------------------------------------------------------------------------------
 def _add_replay(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("replay", help="run the sensor on a depth recording")
-    p.add_argument("recording", help="FILE.npz, a PNG folder, FILE.bag or FILE.db3")
+    p.add_argument("recording", nargs="+", help="FILE.npz, a PNG folder, FILE.bag or FILE.db3 "
+                   "(several: one per camera, fused on one screen; docs/multicam.md)")
     _add_common_outputs(p)
     p.add_argument("--surface", help="load a saved surface model instead of learning one")
     p.add_argument("--save-surface", help="save the learned surface model to this file")
@@ -64,8 +67,18 @@ def _add_replay(sub: argparse._SubParsersAction) -> None:
         if paced and a.realtime is None and not a.quiet:
             print("depthtouch: replaying at the recording's own pace for --tuio "
                   "(--no-realtime: as fast as possible)", file=sys.stderr)
+        if len(a.recording) > 1 or len(a.calibration or []) > 1:
+            from .multicam import check_single_only, replay_multi
+
+            check_single_only(surface=a.surface, save_surface=a.save_surface, filter=a.filter)
+            multi = replay_multi(a.recording, a.calibration or [], config=cfg, events_path=a.events,
+                                 tuio=a.tuio, uinput=a.uinput, surface_frames=a.surface_frames,
+                                 realtime=1.0 if paced else None)
+            if not a.quiet:
+                print(multi.describe())
+            return 0
         summary = replay(
-            a.recording,
+            a.recording[0],
             config=cfg,
             events_path=a.events,
             surface_path=a.surface,
@@ -74,7 +87,7 @@ def _add_replay(sub: argparse._SubParsersAction) -> None:
             filter_name=a.filter,
             tuio=a.tuio,
             uinput=a.uinput,
-            calibration_path=a.calibration,
+            calibration_path=a.calibration[0] if a.calibration else None,
             progress=not a.quiet,
             realtime=1.0 if paced else None,
         )
@@ -385,9 +398,10 @@ def _camera_options(a: argparse.Namespace, source: str) -> dict[str, object]:
 
 def _add_run(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("run", help="run the sensor live on a depth camera")
-    p.add_argument("--source", default="realsense",
+    p.add_argument("--source", action="append",
                    help="realsense[:SERIAL], openni[:URI], or a recording / sim:SCENE played "
-                        "at its own pace (default realsense)")
+                        "at its own pace (default realsense); repeat for several cameras, each "
+                        "with its --calibration (docs/multicam.md)")
     _add_common_outputs(p)
     p.add_argument("--serve", metavar="HOST:PORT", nargs="?", const="127.0.0.1:8765",
                    help="also serve the web page (default 127.0.0.1:8765)")
@@ -404,6 +418,25 @@ def _add_run(sub: argparse._SubParsersAction) -> None:
         from .live import LiveConfig, run_live
         from .sources import is_live_spec
 
+        sources = a.source or ["realsense"]
+        if len(sources) > 1 or len(a.calibration or []) > 1:
+            from .multicam import check_single_only
+            from .multilive import run_live_multi
+
+            check_single_only(surface=a.surface, save_surface=a.save_surface, serve=a.serve)
+            opts = {}
+            for s in sources:
+                opts = _camera_options(a, s)
+            countdown = a.countdown if a.countdown is not None else 3.0
+            res = run_live_multi(sources, a.calibration or [], config=_load_config(a.config),
+                                 events_path=a.events, tuio=a.tuio, uinput=a.uinput,
+                                 source_options=opts, max_seconds=a.seconds,
+                                 live_config=LiveConfig(countdown_s=countdown),
+                                 show_status=not a.quiet)
+            if not a.quiet:
+                print(res.describe())
+            return 0
+        a.source, a.calibration = sources[0], (a.calibration or [None])[0]
         opts = _camera_options(a, a.source)
         countdown = a.countdown if a.countdown is not None else (
             3.0 if is_live_spec(a.source) else 0.0)

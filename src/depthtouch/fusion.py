@@ -303,10 +303,10 @@ class Fusion:
         for (ia, ib), since in list(self._close_since.items()):
             if now - since < self.config.merge_s:
                 continue
-            a, b = self._fused.get(ia), self._fused.get(ib)
-            if a is None or b is None or set(a.members) & set(b.members):
+            fa, fb = self._fused.get(ia), self._fused.get(ib)
+            if fa is None or fb is None or set(fa.members) & set(fb.members):
                 continue
-            keep, drop = (a, b) if a.born_s <= b.born_s else (b, a)
+            keep, drop = (fa, fb) if fa.born_s <= fb.born_s else (fb, fa)
             for cam, tid in drop.members.items():
                 keep.members[cam] = tid
                 self._owner[(cam, tid)] = keep.id

@@ -21,10 +21,11 @@ from __future__ import annotations
 import contextlib
 import heapq
 import time
-from collections.abc import Iterable, Iterator, Sequence
-from dataclasses import dataclass, fields
+from collections.abc import Iterator, Sequence
+from dataclasses import dataclass, field, fields
 from pathlib import Path
 
+from .calibration import Calibration
 from .config import PipelineConfig
 from .driver import DriveStats, drive
 from .errors import ConfigError, SourceError
@@ -67,7 +68,7 @@ class MergedSource:
         self.name = " + ".join(str(getattr(s, "name", s)) for s in self.sources)
 
     def __len__(self) -> int:
-        return sum(len(s) for s in self.sources)  # type: ignore[arg-type]
+        return sum(len(s) for s in self.sources)  # type: ignore[arg-type,misc]
 
     def frames(self) -> Iterator[Frame | StreamGap]:
         its = [iter(s.frames()) for s in self.sources]  # type: ignore[attr-defined]
@@ -184,16 +185,46 @@ class MultiPipeline:
                            "", last.surface)
 
 
-def open_calibrations(paths: Sequence[str | Path], n_sources: int) -> list[object]:
+def open_calibrations(paths: Sequence[str | Path], n_sources: int) -> list[Calibration]:
     """One calibration per source, in the same order; ConfigError naming the counts else."""
     if len(paths) != n_sources:
         raise ConfigError(
-            f"{n_sources} sources but {len(paths)} --calibration files; give one --calibration "
+            f"{n_sources} sources but {len(paths)} --calibration file(s); give one --calibration "
             "per source, in the same order"
         )
     from .calibration import load_calibration
 
     return [load_calibration(p) for p in paths]
+
+
+@dataclass
+class MultiSummary:
+    """What a fused run did: the loop's counts, frames per camera, files written."""
+
+    stats: DriveStats
+    camera_frames: list[int] = field(default_factory=list)
+    outputs: list[str] = field(default_factory=list)
+
+    def describe(self) -> str:
+        s = self.stats
+        per_cam = ", ".join(f"camera {k}: {n} frames" for k, n in enumerate(self.camera_frames))
+        lines = [f"{per_cam}; {s.touches} fused touches, {s.events} events"]
+        if s.ms_per_frame:
+            lines.append(f"touch path with fusion: median {s.median_ms:.3f} ms, "
+                         f"p95 {s.p95_ms:.3f} ms per frame")
+        if s.interrupted:
+            lines.append("interrupted: the outputs hold the frames replayed so far")
+        lines += [f"wrote {o}" for o in self.outputs]
+        return "\n".join(lines)
+
+
+def check_single_only(**options: object) -> None:
+    """ConfigError for options that apply to one camera only (``--surface`` ...)."""
+    given = [name for name, value in options.items() if value]
+    if given:
+        flag = "--" + given[0].replace("_", "-")
+        raise ConfigError(f"{flag} applies to one camera; with several sources each learns its "
+                          "own surface (omit it)")
 
 
 def replay_multi(
@@ -204,10 +235,11 @@ def replay_multi(
     fusion: FusionConfig | None = None,
     events_path: str | Path | None = None,
     tuio: str | None = None,
+    uinput: bool = False,
     surface_frames: int | None = None,
     realtime: float | None = None,
     extra_sinks: Sequence[Sink] = (),
-) -> tuple[DriveStats, MultiPipeline]:
+) -> MultiSummary:
     """``depthtouch replay A.npz B.npz --calibration a.json --calibration b.json``: every
     recording through its own pipeline, merged by time, fused, into the outputs asked for.
     The recordings must share a clock (their timestamps are compared as they are)."""
@@ -219,32 +251,26 @@ def replay_multi(
     cfg = config or PipelineConfig()
     if surface_frames is not None and surface_frames < 2:
         raise ConfigError(f"--surface-frames {surface_frames} is too small; give at least 2")
+    summary = MultiSummary(DriveStats())
     with contextlib.ExitStack() as stack:
         sources = [stack.enter_context(open_source(r)) for r in recordings]
         for s in sources:
             _check_surface_fits(s, None, surface_frames, cfg)
         outputs = stack.enter_context(open_outputs(events_path=events_path, tuio=tuio,
-                                                   calibration=cals[0]))
+                                                   calibration=cals[0], uinput=uinput))
         multi = MultiPipeline([Pipeline(cfg, calibration=c, surface_frames=surface_frames,
                                         strict=True) for c in cals], fusion)
-        stats = drive(merge_by_time(sources), multi, [*outputs.sinks, *extra_sinks],
-                      pace=realtime)
-        if multi.learning:
+        try:
+            drive(merge_by_time(sources), multi, [*outputs.sinks, *extra_sinks],
+                  pace=realtime, stats=summary.stats)
+        except KeyboardInterrupt:
+            summary.stats.interrupted = True
+        if multi.learning and not summary.stats.interrupted:
             raise SourceError(
                 "a recording ended before its surface was learned; record a longer empty start "
                 "or give --surface-frames"
             )
         outputs.commit()
-    return stats, multi
-
-
-def describe(stats: DriveStats, multi: MultiPipeline, written: Iterable[str] = ()) -> str:
-    """The summary lines of a fused run."""
-    per_cam = ", ".join(f"camera {k}: {p.stats.frames} frames" for k, p in
-                        enumerate(multi.pipelines))
-    lines = [f"{per_cam}; {stats.touches} fused touches, {stats.events} events"]
-    if stats.ms_per_frame:
-        lines.append(f"touch path with fusion: median {stats.median_ms:.3f} ms, "
-                     f"p95 {stats.p95_ms:.3f} ms per frame")
-    lines += [f"wrote {w}" for w in written]
-    return "\n".join(lines)
+        summary.camera_frames = [p.stats.frames for p in multi.pipelines]
+    summary.outputs += outputs.written
+    return summary
