@@ -523,6 +523,26 @@ def _add_play(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=run)
 
 
+# --- merge --------------------------------------------------------------------------------------
+def _add_merge(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("merge", help="fuse the TUIO streams of several sensors into one")
+    p.add_argument("--listen", default="127.0.0.1:3333", metavar="HOST:PORT",
+                   help="where the sensors send TUIO (default 127.0.0.1:3333; 0.0.0.0:3333 "
+                        "hears other machines)")
+    p.add_argument("--tuio", default="127.0.0.1:3334", metavar="HOST:PORT",
+                   help="where the merged TUIO goes (default 127.0.0.1:3334)")
+
+    def run(a: argparse.Namespace) -> int:
+        from .outputs.merge import run_merge
+
+        stats = run_merge(a.listen, a.tuio)
+        print(f"merged {stats.senders} senders: {stats.datagrams} datagrams, "
+              f"{stats.malformed} malformed, {stats.late} late", file=sys.stderr)
+        return 0
+
+    p.set_defaults(func=run)
+
+
 _COMMANDS: list[Callable[[argparse._SubParsersAction], None]] = [
     _add_replay,
     _add_play,
@@ -535,6 +555,7 @@ _COMMANDS: list[Callable[[argparse._SubParsersAction], None]] = [
     _add_sim,
     _add_run,
     _add_record,
+    _add_merge,
 ]
 
 
