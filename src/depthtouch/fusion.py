@@ -159,7 +159,13 @@ class Fusion:
 
     @property
     def active_ids(self) -> list[int]:
+        """Ids of the fused touches down now (held ones included)."""
         return sorted(self._fused)
+
+    @property
+    def held(self) -> bool:
+        """Some touch lost by every camera waits for another one (see ``handoff_s``)."""
+        return any(not f.members for f in self._fused.values())
 
     # --- per frame ----------------------------------------------------------------------------
     def update(self, cam: int, t_s: float, frame: int, events: Iterable[TouchEvent],

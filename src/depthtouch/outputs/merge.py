@@ -206,6 +206,8 @@ class TuioMerge:
                 gone = TuioFrame(None, (), {}, None)
                 events = sender_events(sender, gone, self.screen_wh, self._frame, now)
                 self._send(self.fusion.update(sender.cam, now, self._frame, events), now)
+        if self.fusion.held:  # touches waiting for another sender: end them in time
+            self._send(self.fusion.update(-1, now, self._frame, []), now)
 
     def _send(self, events: list[TouchEvent], t_s: float) -> None:
         frame = Frame(_DEPTH, t_s, self._frame)
