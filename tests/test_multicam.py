@@ -179,3 +179,17 @@ def test_calibrations_must_share_the_screen() -> None:
         MultiPipeline(pipes)
     with pytest.raises(ConfigError, match="no calibration"):
         MultiPipeline([Pipeline()])
+
+
+def test_run_two_sources_fuses_live(tmp_path: Path, npz_recording: Path, cli) -> None:
+    """``run`` with two sources (the same small recording twice, played at its own pace as two
+    cameras would deliver it, each calibrated to the same screen): one finger, one touch."""
+    cal = save_calibration(Calibration(np.eye(3), (80, 60), 0.0), tmp_path / "cal.json")
+    out = tmp_path / "live.jsonl"
+    r = cli("run", "--source", npz_recording, "--source", npz_recording, "--calibration", cal,
+            "--calibration", cal, "--events", out, "-q")
+    assert r.rc == 0, r.err
+    events = list(read_events(out))
+    assert {e.id for e in events} == {1}
+    assert [e.state for e in events].count("down") == 1 and events[-1].state == "up"
+    assert {e.extra["cam"] for e in events} <= {0, 1}

@@ -427,7 +427,8 @@ def _add_run(sub: argparse._SubParsersAction) -> None:
             opts = {}
             for s in sources:
                 opts = _camera_options(a, s)
-            countdown = a.countdown if a.countdown is not None else 3.0
+            countdown = a.countdown if a.countdown is not None else (
+                3.0 if any(is_live_spec(s) for s in sources) else 0.0)
             res = run_live_multi(sources, a.calibration or [], config=_load_config(a.config),
                                  events_path=a.events, tuio=a.tuio, uinput=a.uinput,
                                  source_options=opts, max_seconds=a.seconds,
