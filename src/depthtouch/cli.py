@@ -16,6 +16,7 @@ from .errors import DepthTouchError
 
 if TYPE_CHECKING:
     from .config import PipelineConfig
+    from .fusion import FusionConfig
 
 
 class _Parser(argparse.ArgumentParser):
@@ -42,6 +43,19 @@ def _add_common_outputs(p: argparse.ArgumentParser) -> None:
                         "one per source, in the same order")
     p.add_argument("--uinput", action="store_true",
                    help="also touch the desktop: a virtual touchscreen (Linux, docs/uinput.md)")
+    _add_fusion_gate(p)
+
+
+def _add_fusion_gate(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--fusion-gate-px", type=float, default=60.0, metavar="PX",
+                   help="several cameras: touches this close on the screen are one finger "
+                        "(screen px, default 60; docs/multicam.md)")
+
+
+def _fusion(a: argparse.Namespace) -> FusionConfig:
+    from .fusion import FusionConfig
+
+    return FusionConfig(gate_px=a.fusion_gate_px)
 
 
 # --- replay -------------------------------------------------------------------------------------
@@ -73,7 +87,7 @@ def _add_replay(sub: argparse._SubParsersAction) -> None:
             check_single_only(surface=a.surface, save_surface=a.save_surface, filter=a.filter)
             multi = replay_multi(a.recording, a.calibration or [], config=cfg, events_path=a.events,
                                  tuio=a.tuio, uinput=a.uinput, surface_frames=a.surface_frames,
-                                 realtime=1.0 if paced else None)
+                                 realtime=1.0 if paced else None, fusion=_fusion(a))
             if not a.quiet:
                 print(multi.describe())
             return 0
@@ -433,7 +447,7 @@ def _add_run(sub: argparse._SubParsersAction) -> None:
                                  events_path=a.events, tuio=a.tuio, uinput=a.uinput,
                                  source_options=opts, max_seconds=a.seconds,
                                  live_config=LiveConfig(countdown_s=countdown),
-                                 show_status=not a.quiet)
+                                 show_status=not a.quiet, fusion=_fusion(a))
             if not a.quiet:
                 print(res.describe())
             return 0
@@ -532,11 +546,12 @@ def _add_merge(sub: argparse._SubParsersAction) -> None:
                         "hears other machines)")
     p.add_argument("--tuio", default="127.0.0.1:3334", metavar="HOST:PORT",
                    help="where the merged TUIO goes (default 127.0.0.1:3334)")
+    _add_fusion_gate(p)
 
     def run(a: argparse.Namespace) -> int:
         from .outputs.merge import run_merge
 
-        stats = run_merge(a.listen, a.tuio)
+        stats = run_merge(a.listen, a.tuio, fusion=_fusion(a))
         print(f"merged {stats.senders} senders: {stats.datagrams} datagrams, "
               f"{stats.malformed} malformed, {stats.late} late", file=sys.stderr)
         return 0
