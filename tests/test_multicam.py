@@ -14,6 +14,7 @@ import pytest
 from depthtouch.calibration import Calibration, save_calibration
 from depthtouch.cli import main
 from depthtouch.evaluation.metrics import Metrics, evaluate, summarize, truth_from_dict
+from depthtouch.fusion import in_screen
 from depthtouch.multicam import CameraFrame, MultiPipeline, merge_by_time
 from depthtouch.multilive import LiveMerge, NewestPerCamera
 from depthtouch.outputs.jsonl import read_events
@@ -38,12 +39,6 @@ def cut_views(rec: object, seam_x: int = SEAM_X, half: int = HALF_OVERLAP_PX
     shift = np.array([[1.0, 0.0, off], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]])
     return [(np.ascontiguousarray(depth[:, :, :seam_x + half]), K.copy(), np.eye(3)),
             (np.ascontiguousarray(depth[:, :, off:]), k_right, shift)]
-
-
-def in_screen(events: list[TouchEvent]) -> list[TouchEvent]:
-    """The events with x, y taken from sx, sy (the original image's pixels)."""
-    return [TouchEvent(e.frame, e.t, e.id, e.state, float(e.extra["sx"]), float(e.extra["sy"]),
-                       e.extra) for e in events]
 
 
 def metrics(rec: object, events: list[TouchEvent]) -> Metrics:

@@ -34,6 +34,7 @@ import cv2
 import numpy as np
 
 from .checks import check_range
+from .errors import ConfigError
 from .types import TouchEvent
 
 
@@ -355,3 +356,16 @@ class Fusion:
         extra.update(sx=round(f.last_sxy[0], 2), sy=round(f.last_sxy[1], 2), cam=f.last_cam)
         x, y = (o.x, o.y) if o is not None else (math.nan, math.nan)
         return TouchEvent(frame, now, f.id, state, x, y, extra)  # type: ignore[arg-type]
+
+
+def in_screen(events: Iterable[TouchEvent]) -> list[TouchEvent]:
+    """The events with ``x``, ``y`` replaced by their ``sx``, ``sy`` (to score fused events
+    against truth in screen pixels); ConfigError when one has none."""
+    out = []
+    for e in events:
+        if "sx" not in e.extra or "sy" not in e.extra:
+            raise ConfigError(f"event of touch {e.id} (frame {e.frame}) has no sx, sy; score "
+                             "events of a calibrated or fused replay")
+        out.append(TouchEvent(e.frame, e.t, e.id, e.state, float(e.extra["sx"]),
+                              float(e.extra["sy"]), e.extra))
+    return out

@@ -11,12 +11,12 @@ import pytest
 from depthtouch.calibration import Calibration
 from depthtouch.errors import ConfigError
 from depthtouch.evaluation.metrics import Metrics, evaluate, summarize, truth_from_dict
+from depthtouch.fusion import in_screen
 from depthtouch.multicam import MultiPipeline, merge_by_time
 from depthtouch.pipeline import Pipeline
 from depthtouch.sim.multiview import MultiViewRecording, ViewPose, render_views
 from depthtouch.sources.base import ArraySource
 from depthtouch.types import TouchEvent
-from test_multicam import in_screen
 
 POSES = [ViewPose((-400.0, 0.0, 0.0)), ViewPose((400.0, 0.0, 0.0))]
 
@@ -81,3 +81,26 @@ def test_views_calibrate_exactly_and_refuse_moving_scenes():
     assert p == pytest.approx([320.0 - 400.0 * fx / 1000.0, 240.0], abs=1e-6)
     with pytest.raises(ConfigError, match="bump or drift"):
         render_views("bump", POSES, camera="kinect-v1")
+
+
+def test_cli_sim_views_replay_fused_eval_in_screen(tmp_path, cli):
+    """``sim --views 2`` -> ``replay`` of both views fused -> ``eval --space screen``."""
+    import json
+
+    out, truth = tmp_path / "views", tmp_path / "truth.json"
+    r = cli("sim", "taps", "--views", "2", "--camera", "kinect-v1", "--fps", "15", "--out", out,
+            "--truth", truth, "-q")
+    assert r.rc == 0, r.err
+    fused = tmp_path / "fused.jsonl"
+    r = cli("replay", out / "view0.npz", out / "view1.npz", "--calibration",
+            out / "view0.calibration.json", "--calibration", out / "view1.calibration.json",
+            "--events", fused, "-q")
+    assert r.rc == 0, r.err
+    r = cli("eval", "--truth", truth, "--events", fused, "--space", "screen", "--json")
+    assert r.rc == 0, r.err
+    m = next(iter(json.loads(r.out).values()))
+    assert m["contact_recall"] == 1.0 and m["false_touches"] == 0 and m["id_switches"] == 0
+    # scored by x, y (one camera's pixels each) the same events are wrong
+    r = cli("eval", "--truth", truth, "--events", fused, "--json")
+    assert next(iter(json.loads(r.out).values()))["frame_recall"] < 0.9
+    assert cli("sim", "taps", "--views", "5", "--out", tmp_path / "x", "--truth", truth).rc == 2

@@ -15,11 +15,12 @@ Plane surfaces, scenes without bump or drift (the views would need the same moti
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
+from pathlib import Path
 
 import cv2
 import numpy as np
 
-from ..errors import ConfigError
+from ..errors import ConfigError, SourceError
 from .cameras import NoiseModel, get_profile
 from .geometry import (
     Box,
@@ -146,3 +147,35 @@ def render_views(
         H = plane_homography(world, rays.K, R, c, rays.K)
         views.append(View(depth, rays.K.copy(), H, pose))
     return MultiViewRecording(views, reference, reference.timestamps_s, (w, h))
+
+
+def default_poses(n: int, spacing_mm: float = 800.0) -> list[ViewPose]:
+    """``n`` cameras side by side along x, ``spacing_mm`` apart, centred on the reference
+    (2 cameras 0.8 m apart at 1 m with a Kinect v1 profile overlap by about 0.3 m)."""
+    if not 1 <= n <= 3:
+        raise ConfigError(f"--views {n} is out of range; allowed [1, 3]")
+    return [ViewPose(((k - (n - 1) / 2) * spacing_mm, 0.0, 0.0)) for k in range(n)]
+
+
+def write_views(mv: MultiViewRecording, folder: str | Path,
+                truth_path: str | Path | None = None) -> list[Path]:
+    """Write ``view{k}.npz`` and ``view{k}.calibration.json`` per view into a new or empty
+    folder, and the screen truth to ``truth_path`` (default ``folder/truth.json``); returns the
+    written paths."""
+    from ..calibration import Calibration, save_calibration
+    from ..sources import write_npz
+    from .render import _write_json_atomic
+
+    out = Path(folder)
+    if out.exists() and (not out.is_dir() or any(out.iterdir())):
+        raise SourceError(f"{out}: exists and is not an empty folder; choose a new folder")
+    out.mkdir(parents=True, exist_ok=True)
+    written: list[Path] = []
+    for k, v in enumerate(mv.views):
+        written.append(write_npz(out / f"view{k}.npz", v.depth, mv.timestamps_s, 0.001, v.K))
+        written.append(save_calibration(Calibration(v.H_to_screen, mv.screen_wh, 0.0),
+                                        out / f"view{k}.calibration.json"))
+    truth = Path(truth_path) if truth_path is not None else out / "truth.json"
+    _write_json_atomic(truth, mv.reference.truth)
+    written.append(truth)
+    return written
