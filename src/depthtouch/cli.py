@@ -13,6 +13,7 @@ from __future__ import annotations
 import argparse
 import sys
 from collections.abc import Callable, Sequence
+from typing import TYPE_CHECKING
 
 from .cli_tools import (
     _add_bench_filters,
@@ -24,6 +25,9 @@ from .cli_tools import (
 )
 from .cli_tools import load_config_arg as _load_config
 from .errors import DepthTouchError
+
+if TYPE_CHECKING:
+    from .fusion import FusionConfig
 
 
 class _Parser(argparse.ArgumentParser):
@@ -39,15 +43,31 @@ def _add_common_outputs(p: argparse.ArgumentParser) -> None:
         "--tuio", metavar="HOST:PORT", nargs="?", const="127.0.0.1:3333",
         help="send TUIO 1.1 /tuio/2Dcur over UDP (default 127.0.0.1:3333)",
     )
-    p.add_argument("--calibration", help="screen calibration file (adds sx, sy to events)")
+    p.add_argument("--calibration", action="append",
+                   help="screen calibration file (adds sx, sy to events); several sources: "
+                        "one per source, in the same order")
     p.add_argument("--uinput", action="store_true",
                    help="also touch the desktop: a virtual touchscreen (Linux, docs/uinput.md)")
+    _add_fusion_gate(p)
+
+
+def _add_fusion_gate(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--fusion-gate-px", type=float, default=60.0, metavar="PX",
+                   help="several cameras: touches this close on the screen are one finger "
+                        "(screen px, default 60; docs/multicam.md)")
+
+
+def _fusion(a: argparse.Namespace) -> FusionConfig:
+    from .fusion import FusionConfig
+
+    return FusionConfig(gate_px=a.fusion_gate_px)
 
 
 # --- replay -------------------------------------------------------------------------------------
 def _add_replay(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("replay", help="run the sensor on a depth recording")
-    p.add_argument("recording", help="FILE.npz, a PNG folder, FILE.bag or FILE.db3")
+    p.add_argument("recording", nargs="+", help="FILE.npz, a PNG folder, FILE.bag or FILE.db3 "
+                   "(several: one per camera, fused on one screen; docs/multicam.md)")
     _add_common_outputs(p)
     p.add_argument("--surface", help="load a saved surface model instead of learning one")
     p.add_argument("--save-surface", help="save the learned surface model to this file")
@@ -66,8 +86,18 @@ def _add_replay(sub: argparse._SubParsersAction) -> None:
         if paced and a.realtime is None and not a.quiet:
             print("depthtouch: replaying at the recording's own pace for --tuio "
                   "(--no-realtime: as fast as possible)", file=sys.stderr)
+        if len(a.recording) > 1 or len(a.calibration or []) > 1:
+            from .multicam import check_single_only, replay_multi
+
+            check_single_only(surface=a.surface, save_surface=a.save_surface, filter=a.filter)
+            multi = replay_multi(a.recording, a.calibration or [], config=cfg, events_path=a.events,
+                                 tuio=a.tuio, uinput=a.uinput, surface_frames=a.surface_frames,
+                                 realtime=1.0 if paced else None, fusion=_fusion(a))
+            if not a.quiet:
+                print(multi.describe())
+            return 0
         summary = replay(
-            a.recording,
+            a.recording[0],
             config=cfg,
             events_path=a.events,
             surface_path=a.surface,
@@ -76,7 +106,7 @@ def _add_replay(sub: argparse._SubParsersAction) -> None:
             filter_name=a.filter,
             tuio=a.tuio,
             uinput=a.uinput,
-            calibration_path=a.calibration,
+            calibration_path=a.calibration[0] if a.calibration else None,
             progress=not a.quiet,
             realtime=1.0 if paced else None,
         )
@@ -167,9 +197,10 @@ def _camera_options(a: argparse.Namespace, source: str) -> dict[str, object]:
 
 def _add_run(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("run", help="run the sensor live on a depth camera")
-    p.add_argument("--source", default="realsense",
+    p.add_argument("--source", action="append",
                    help="realsense[:SERIAL], openni[:URI], or a recording / sim:SCENE played "
-                        "at its own pace (default realsense)")
+                        "at its own pace (default realsense); repeat for several cameras, each "
+                        "with its --calibration (docs/multicam.md)")
     _add_common_outputs(p)
     p.add_argument("--serve", metavar="HOST:PORT", nargs="?", const="127.0.0.1:8765",
                    help="also serve the web page (default 127.0.0.1:8765)")
@@ -186,6 +217,26 @@ def _add_run(sub: argparse._SubParsersAction) -> None:
         from .live import LiveConfig, run_live
         from .sources import is_live_spec
 
+        sources = a.source or ["realsense"]
+        if len(sources) > 1 or len(a.calibration or []) > 1:
+            from .multicam import check_single_only
+            from .multilive import run_live_multi
+
+            check_single_only(surface=a.surface, save_surface=a.save_surface, serve=a.serve)
+            opts = {}
+            for s in sources:
+                opts = _camera_options(a, s)
+            countdown = a.countdown if a.countdown is not None else (
+                3.0 if any(is_live_spec(s) for s in sources) else 0.0)
+            res = run_live_multi(sources, a.calibration or [], config=_load_config(a.config),
+                                 events_path=a.events, tuio=a.tuio, uinput=a.uinput,
+                                 source_options=opts, max_seconds=a.seconds,
+                                 live_config=LiveConfig(countdown_s=countdown),
+                                 show_status=not a.quiet, fusion=_fusion(a))
+            if not a.quiet:
+                print(res.describe())
+            return 0
+        a.source, a.calibration = sources[0], (a.calibration or [None])[0]
         opts = _camera_options(a, a.source)
         countdown = a.countdown if a.countdown is not None else (
             3.0 if is_live_spec(a.source) else 0.0)
@@ -272,6 +323,27 @@ def _add_play(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=run)
 
 
+# --- merge --------------------------------------------------------------------------------------
+def _add_merge(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("merge", help="fuse the TUIO streams of several sensors into one")
+    p.add_argument("--listen", default="127.0.0.1:3333", metavar="HOST:PORT",
+                   help="where the sensors send TUIO (default 127.0.0.1:3333; 0.0.0.0:3333 "
+                        "hears other machines)")
+    p.add_argument("--tuio", default="127.0.0.1:3334", metavar="HOST:PORT",
+                   help="where the merged TUIO goes (default 127.0.0.1:3334)")
+    _add_fusion_gate(p)
+
+    def run(a: argparse.Namespace) -> int:
+        from .outputs.merge import run_merge
+
+        stats = run_merge(a.listen, a.tuio, fusion=_fusion(a))
+        print(f"merged {stats.senders} senders: {stats.datagrams} datagrams, "
+              f"{stats.malformed} malformed, {stats.late} late", file=sys.stderr)
+        return 0
+
+    p.set_defaults(func=run)
+
+
 _COMMANDS: list[Callable[[argparse._SubParsersAction], None]] = [
     _add_replay,
     _add_play,
@@ -284,6 +356,7 @@ _COMMANDS: list[Callable[[argparse._SubParsersAction], None]] = [
     _add_sim,
     _add_run,
     _add_record,
+    _add_merge,
 ]
 
 

@@ -64,6 +64,9 @@ def _add_eval(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--half", choices=("tune", "held-out", "all"),
                    help="with --suite: the tune or held-out half (or all), both side by side")
     p.add_argument("--json", action="store_true", help="print the metrics as JSON")
+    p.add_argument("--space", choices=("depth", "screen"), default="depth",
+                   help="score --events by x, y (depth) or sx, sy (screen: fused cameras of "
+                        "sim --views)")
     p.add_argument("--gestures", action="store_true",
                    help="gesture precision and recall per kind (tap, long press, drag) instead; "
                         "without a recording: on the simulated presses, taps and drags scenes")
@@ -99,7 +102,7 @@ def _add_eval(sub: argparse._SubParsersAction) -> None:
             )
         else:
             metrics = eval_recording_command(a.recording, a.truth, events_path=a.events,
-                                             config=cfg, gate_mm=a.gate_mm)
+                                             config=cfg, gate_mm=a.gate_mm, space=a.space)
         if a.json:
             print(json.dumps({k: m.to_dict() for k, m in metrics.items()}, indent=1))
         else:
@@ -235,10 +238,25 @@ def _add_sim(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--seed", type=int, default=0, help="random seed (>= 0)")
     p.add_argument("--fps", type=float, default=30.0, help="frame rate, Hz [1, 120]")
     p.add_argument("--no-noise", action="store_true", help="exact geometry, no sensor noise")
+    p.add_argument("--views", type=int, metavar="N",
+                   help="N cameras (2-3) 0.8 m apart: --out is a folder of viewK.npz, "
+                        "viewK.calibration.json and --truth on the shared screen "
+                        "(docs/multicam.md)")
     p.add_argument("-q", "--quiet", action="store_true", help="print only errors")
 
     def run(a: argparse.Namespace) -> int:
         from .sim import render_scene, write_recording
+
+        if a.views is not None:
+            from .sim.multiview import default_poses, render_views, write_views
+
+            mv = render_views(a.scene, default_poses(a.views), camera=a.camera,
+                              distance_m=a.distance, seed=a.seed, fps=a.fps,
+                              noise=not a.no_noise)
+            written = write_views(mv, a.out, truth_path=a.truth)
+            if not a.quiet:
+                print("\n".join(str(p) for p in written))
+            return 0
 
         rec = render_scene(
             a.scene, camera=a.camera, distance_m=a.distance, tilt_deg=a.tilt,

@@ -443,8 +443,12 @@ def eval_recording_command(
     events_path: str | Path | None = None,
     config: PipelineConfig | None = None,
     gate_mm: float = GATE_MM,
+    space: str = "depth",
 ) -> dict[str, Metrics]:
-    """``depthtouch eval REC --truth T``, or ``--events E --truth T`` (no sensor run)."""
+    """``depthtouch eval REC --truth T``, or ``--events E --truth T`` (no sensor run).
+
+    space: "screen" scores an events file by its ``sx``, ``sy`` (fused cameras, whose screen is
+    the truth's image: ``depthtouch sim --views``), "depth" by ``x``, ``y``."""
     if truth is None:
         raise ConfigError("eval needs --truth TRUTH.json for a recording (or use --suite NAME)")
     t = read_truth(truth)
@@ -453,8 +457,12 @@ def eval_recording_command(
         from ..outputs.jsonl import read_events
 
         settle = (config or PipelineConfig()).tracking.down_frames
-        res = evaluate(t, list(read_events(events_path)), gate_mm=gate_mm,
-                       settle_frames=settle, label=name)
+        events = list(read_events(events_path))
+        if space == "screen":
+            from ..fusion import in_screen
+
+            events = in_screen(events)
+        res = evaluate(t, events, gate_mm=gate_mm, settle_frames=settle, label=name)
     elif recording is not None:
         res = evaluate_recording(recording, t, config, gate_mm=gate_mm, label=name)
     else:
