@@ -7,7 +7,8 @@ an ``empty()`` constructor. Nothing here mutates its inputs.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any, Literal, Protocol
+from types import TracebackType
+from typing import Any, Literal, Protocol, TypeVar
 
 import numpy as np
 
@@ -17,6 +18,24 @@ TouchState = Literal["down", "move", "up"]
 #: ``relearned`` (the camera moved: touches ended, the surface is learned again), ``skipped``
 #: (an unusable frame, counted), ``ended`` (the touches still down were ended at a stream's end).
 FrameStatus = Literal["learning", "ok", "disturbed", "relearned", "skipped", "ended"]
+
+
+_C = TypeVar("_C", bound="Closing")
+
+
+class Closing:
+    """Context-manager plumbing for anything with ``close()``: ``with x:`` closes x at the end,
+    on every path (sources, sinks)."""
+
+    def close(self) -> None:
+        """Release what is held; safe to call twice."""
+
+    def __enter__(self: _C) -> _C:
+        return self
+
+    def __exit__(self, exc_type: type[BaseException] | None, exc: BaseException | None,
+                 tb: TracebackType | None) -> None:
+        self.close()
 
 
 def _check_shape(name: str, arr: np.ndarray, shape: tuple[int | None, ...]) -> None:

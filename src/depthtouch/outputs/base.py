@@ -8,10 +8,9 @@ once, not raised from :meth:`send`. Sinks read the coordinates the pipeline put 
 
 from __future__ import annotations
 
-from types import TracebackType
 from typing import Protocol, runtime_checkable
 
-from ..types import FrameResult
+from ..types import Closing, FrameResult
 
 
 @runtime_checkable
@@ -25,7 +24,7 @@ class Sink(Protocol):
 EventSink = Sink
 
 
-class SinkBase:
+class SinkBase(Closing):
     """Context-manager plumbing for sinks."""
 
     def send(self, result: FrameResult) -> None:  # pragma: no cover
@@ -33,14 +32,3 @@ class SinkBase:
 
     def close(self) -> None:
         """Flush and release; safe to call twice."""
-
-    def __enter__(self) -> SinkBase:
-        return self
-
-    def __exit__(
-        self,
-        exc_type: type[BaseException] | None,
-        exc: BaseException | None,
-        tb: TracebackType | None,
-    ) -> None:
-        self.close()

@@ -13,7 +13,7 @@ from typing import Protocol, runtime_checkable
 import numpy as np
 
 from ..errors import SourceError
-from ..types import Frame
+from ..types import Closing, Frame
 
 
 @runtime_checkable
@@ -44,7 +44,7 @@ class DepthSource(Protocol):
     ) -> None: ...
 
 
-class SourceBase:
+class SourceBase(Closing):
     """Shared plumbing: context management and a length when the source knows it."""
 
     depth_scale_m: float = 0.001
@@ -58,17 +58,6 @@ class SourceBase:
 
     def close(self) -> None:
         """Release files or devices; safe to call twice."""
-
-    def __enter__(self) -> SourceBase:
-        return self
-
-    def __exit__(
-        self,
-        exc_type: type[BaseException] | None,
-        exc: BaseException | None,
-        tb: TracebackType | None,
-    ) -> None:
-        self.close()
 
     def __iter__(self) -> Iterator[Frame]:
         return self.frames()
