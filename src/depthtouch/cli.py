@@ -341,7 +341,7 @@ def _add_merge(sub: argparse._SubParsersAction) -> None:
               f"{stats.malformed} malformed, {stats.late} late", file=sys.stderr)
         return 0
 
-    p.set_defaults(func=run)
+    p.set_defaults(func=run, stops_cleanly=True)
 
 
 _COMMANDS: list[Callable[[argparse._SubParsersAction], None]] = [

@@ -100,7 +100,7 @@ def test_senders_with_the_same_name_are_told_apart_and_fused(merge, receiver):
     merge.tick()
     assert merge.fusion.active_ids == []
     parts = validate_stream(drain(receiver, merge.stats.sent_frames))
-    assert {sid for p in parts for sid in p["sets"]} == {1}
+    assert len({sid for p in parts for sid in p["sets"]}) == 1  # one session id (offset per run)
     assert parts[-1]["alive"] == []
 
 

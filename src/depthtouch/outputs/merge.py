@@ -223,20 +223,25 @@ class TuioMerge:
         if sock is None:
             raise OutputError("the merge is closed; make a new one")
         last_tick = self.clock()
+        from .. import stopping
+
         try:
-            while not stop.is_set():
-                try:
-                    dgram, addr = sock.recvfrom(65536)
-                except TimeoutError:
-                    dgram = b""
-                except OSError as e:  # e.g. ICMP errors surfacing on some systems: go on
-                    log.debug("merge: receive failed (%s)", e)
-                    continue
-                if dgram:
-                    self.handle(dgram, addr)
-                if self.clock() - last_tick >= 0.1:
-                    last_tick = self.clock()
-                    self.tick()
+            # SIGTERM, SIGHUP, Ctrl-C (depthtouch.stopping) set ``stop``: the loop ends between
+            # datagrams, and the close sends the final empty alive
+            with stopping.listen(stop.set):
+                while not stop.is_set():
+                    try:
+                        dgram, addr = sock.recvfrom(65536)
+                    except TimeoutError:
+                        dgram = b""
+                    except OSError as e:  # e.g. ICMP errors surfacing on some systems: go on
+                        log.debug("merge: receive failed (%s)", e)
+                        continue
+                    if dgram:
+                        self.handle(dgram, addr)
+                    if self.clock() - last_tick >= 0.1:
+                        last_tick = self.clock()
+                        self.tick()
         finally:
             self.close()
         return self.stats
