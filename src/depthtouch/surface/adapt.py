@@ -5,7 +5,11 @@ horizontal stripe of the image per frame (so the cost is spread evenly):
 
 - a pixel that differs from the surface by more than its Tl and then stays still for
   ``absorb_s`` becomes surface (an object put down; likewise the table where it was taken away);
-- unchanged pixels follow the frames slowly (time constant ``drift_tau_s``): drift is absorbed;
+- drift is followed: the stripe's unchanged pixels give the median offset of the frame from the
+  surface, and the whole stripe (changed pixels too: the table under a hand drifts as well)
+  moves by half of it at each visit, so a steady drift (a ToF camera warming up, 0.5 mm/s) lags
+  by less than a millimetre instead of piling up into the touch band; what is left, drift that
+  differs from pixel to pixel, unchanged pixels follow slowly (time constant ``drift_tau_s``);
 - never absorbed: anything connected to a change that reaches the image border (a hand is
   attached to an arm that enters from outside the view, and the arm rises above the band), and
   anything within ``keep_out_mm`` of an active touch. A finger held still for minutes stays a
@@ -29,6 +33,8 @@ from .bounds import BandBounds, refresh_rows
 
 _SCALE = 4  # the whole-frame checks run on a 1/4 resolution view
 _BLOCK = 8  # the bump check compares a 1/8 view (2x2 means, every 8th pixel)
+_OFFSET_GAIN = 0.5  # share of a stripe's median offset applied per visit (see the module doc)
+_OFFSET_MIN_SHARE = 0.25  # ... when at least this share of its usable pixels are unchanged
 
 
 class SurfaceAdapter:
@@ -156,6 +162,13 @@ class SurfaceAdapter:
         last = float(self._visit_t[k])
         alpha = (min(1.0, (t - last) / cfg.drift_tau_s)
                  if math.isfinite(last) and t > last else -1.0)
+        shifted = False
+        if alpha >= 0.0:
+            off, n_un, n_ok = _stripe_offset(depth, b.surface_mm, b.factor, b.tl_mm, b.valid,
+                                             y0, y1, float(b.to_mm))
+            if n_ok and n_un >= _OFFSET_MIN_SHARE * n_ok and abs(off) > 1e-3:
+                _shift_rows(b.surface_mm, b.valid, y0, y1, np.float32(_OFFSET_GAIN * off))
+                shifted = True
         n_abs = _stripe_update(
             depth, b.surface_mm, b.factor, b.tl_mm, b.valid, self._since, self._prev,
             self._still_tol, _upsample(self._exclude, self._up_y[y0:y1], self._up_x), y0, y1,
@@ -167,7 +180,7 @@ class SurfaceAdapter:
         self._visits[k] += 1
         # the drift moves the bounds by fractions of a unit: refreshing them every 8th visit is
         # enough; an absorbed object must count at once
-        if n_abs or self._visits[k] % 8 == 0:
+        if n_abs or shifted or self._visits[k] % 8 == 0:
             refresh_rows(b, y0, y1)
 
     def _exclusions(self, depth: np.ndarray, touch_xy_px: np.ndarray) -> None:
@@ -226,6 +239,46 @@ def _changed_view(depth: np.ndarray, surface_mm: np.ndarray, view_tl: np.ndarray
             if d > 0 and okr[i] and abs(sr[x] - d) > tr[i]:
                 out[j, i] = 1
     return out
+
+
+@numba.njit(cache=True, nogil=True)
+def _stripe_offset(depth: np.ndarray, surface_mm: np.ndarray, factor: np.ndarray,
+                   tl_mm: np.ndarray, valid: np.ndarray, y0: int, y1: int, to_mm: float
+                   ) -> tuple[float, int, int]:
+    """The median of frame minus surface (mm along the optical axis) over the unchanged
+    pixels of rows y0:y1 (within their Tl of the surface); returns (median, how many unchanged,
+    how many usable)."""
+    w = depth.shape[1]
+    res = np.empty((y1 - y0) * w, np.float32)
+    n = 0
+    n_ok = 0
+    t = np.float32(to_mm)
+    for y in range(y0, y1):
+        dr, sr, fr, tr, vr = depth[y], surface_mm[y], factor[y], tl_mm[y], valid[y]
+        for x in range(w):
+            d = dr[x]
+            if d == 0 or not vr[x]:
+                continue
+            n_ok += 1
+            r = np.float32(d) * t - sr[x]
+            if abs(r * fr[x]) <= tr[x]:
+                res[n] = r
+                n += 1
+    if n == 0:
+        return 0.0, 0, n_ok
+    return float(np.median(res[:n])), n, n_ok
+
+
+@numba.njit(cache=True, nogil=True)
+def _shift_rows(surface_mm: np.ndarray, valid: np.ndarray, y0: int, y1: int,
+                off: np.float32) -> None:
+    """Move the usable surface pixels of rows y0:y1 by ``off`` mm (in place)."""
+    w = surface_mm.shape[1]
+    for y in range(y0, y1):
+        sr, vr = surface_mm[y], valid[y]
+        for x in range(w):
+            if vr[x]:
+                sr[x] += off
 
 
 @numba.njit(cache=True, nogil=True)
@@ -305,6 +358,8 @@ def warm_up() -> None:
     excl = _upsample(_changed_view(z16, f, f, b, idx, idx, 1.0), idx, idx)
     _stripe_update(z16, f, f + 1, f + 1, b, f.copy(), f.copy(), f + 1, excl, 0, 8, 1.0, 0.0, 0.5,
                    False, -1.0)
+    _stripe_offset(z16, f, f + 1, f + 1, b, 0, 8, 1.0)
+    _shift_rows(f.copy(), b, 0, 8, np.float32(0.5))
 
 
 @numba.njit(cache=True, nogil=True)
