@@ -83,6 +83,8 @@ class TouchPoints:
     hand_xy_px: (N, 2) centroid of the attached hand/arm part (NaN when none was seen).
     hand_at_border: (N,) bool, the hand is connected to the image border (an arm reaching in);
         None means unknown (taken as True).
+    attach_px: (N,) hand pixels within 2 px of the region, its attachment to the hand (about
+        twice the attached length in px); None means unknown.
     """
 
     xy_px: np.ndarray
@@ -90,6 +92,7 @@ class TouchPoints:
     area_px: np.ndarray
     hand_xy_px: np.ndarray
     hand_at_border: np.ndarray | None = None
+    attach_px: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         n = self.xy_px.shape[0] if self.xy_px.ndim == 2 else -1
@@ -99,6 +102,8 @@ class TouchPoints:
         _check_shape("TouchPoints.hand_xy_px", self.hand_xy_px, (n, 2))
         if self.hand_at_border is not None:
             _check_shape("TouchPoints.hand_at_border", self.hand_at_border, (n,))
+        if self.attach_px is not None:
+            _check_shape("TouchPoints.attach_px", self.attach_px, (n,))
 
     @classmethod
     def empty(cls) -> TouchPoints:
@@ -109,9 +114,10 @@ class TouchPoints:
 
     def __getitem__(self, index: np.ndarray | slice) -> TouchPoints:
         border = None if self.hand_at_border is None else self.hand_at_border[index]
+        attach = None if self.attach_px is None else self.attach_px[index]
         return TouchPoints(
             self.xy_px[index], self.height_mm[index], self.area_px[index], self.hand_xy_px[index],
-            border,
+            border, attach,
         )
 
 

@@ -171,3 +171,22 @@ def test_compiled_kernel_matches_the_array_reference(scene, camera, monkeypatch)
     assert np.median(dist) < 0.01
     assert np.percentile(dist, 99) < 1.0
     assert max(dist) < 1.5
+
+
+def test_attachment_is_a_fingers_width_for_a_tip_and_long_for_a_forearm_edge(bounds):
+    """The kernel's attachment (hand pixels within 2 px of a region) measures how long the
+    region hangs on the hand, read as (n / 2 - 4) px by TrackingConfig.attach_max_mm: for a
+    fingertip only the finger's ridge rises past Tu next to it (measured 1.7 mm here), for the
+    edge of a forearm lying in the band its whole length (measured 250 mm)."""
+    for pitch in (20.0, 35.0, 60.0):
+        tip = detect(bounds, [Finger(320, 240, 90, pitch_deg=pitch)])
+        assert len(tip) == 1 and tip.attach_px is not None
+        assert 0 < tip.attach_px[0] and (tip.attach_px[0] / 2 - 4) * MM_PER_PX < 15.0
+    # a forearm resting on its edge: a raised block 70 mm wide, its rounded edge in the band
+    arm = np.zeros((480, 640), np.float32)
+    w_px, edge_px = int(70 / MM_PER_PX), int(12 / MM_PER_PX)
+    arm[200:200 + w_px, 300:] = 45.0
+    arm[200 + w_px:200 + w_px + edge_px, 330:] = 12.0
+    edge = detect(bounds, [], flat=arm)
+    assert len(edge) >= 1 and edge.attach_px is not None
+    assert ((edge.attach_px / 2 - 4) * MM_PER_PX > 30.0).all()

@@ -307,3 +307,28 @@ def test_evidence_by_size_is_off_without_a_scale_or_at_weight_1() -> None:
     for tr in (Tracker(TrackingConfig(down_frames=2)),
                Tracker(TrackingConfig(down_frames=2, weak_evidence=1.0), scale_mm_per_px=1.0)):
         assert [[s for _, s in f] for f in run(tr, [_tip(40)] * 2)] == [[], ["down"]]
+
+
+def _attached(attach_px: int, scale: float) -> TouchPoints:
+    """A fingertip-sized region (300 mm^2) whose region touches the hand in ``attach_px``
+    pixels."""
+    return TouchPoints(np.array([[100.0, 100.0]]), np.array([5.0]),
+                       np.array([int(round(300 / scale**2))]), np.array([[np.nan, np.nan]]),
+                       None, np.array([attach_px]))
+
+
+@pytest.mark.parametrize(("scale", "finger_mm", "goes_down"), [
+    (1.0, 18.0, True),    # a finger 18 mm wide at 1 mm/px
+    (1.0, 60.0, False),   # a forearm's edge 60 mm long lying in the band
+    (2.5, 18.0, True),
+    (2.5, 60.0, False),
+    (5.0, 25.0, True),    # at range the ring's own width is allowed for
+])
+def test_a_region_attached_along_more_than_a_finger_gives_no_evidence(
+        scale: float, finger_mm: float, goes_down: bool) -> None:
+    tr = Tracker(TrackingConfig(down_frames=2, attach_max_mm=30.0), scale_mm_per_px=scale)
+    n = int(round(2 * (finger_mm / scale + 4)))  # what the kernel counts (TrackingConfig doc)
+    states = [s for f in run(tr, [_attached(n, scale)] * 8) for _, s in f]
+    assert ("down" in states) == goes_down
+    off = Tracker(TrackingConfig(down_frames=2, attach_max_mm=0.0), scale_mm_per_px=scale)
+    assert "down" in [s for f in run(off, [_attached(n, scale)] * 8) for _, s in f]

@@ -11,8 +11,9 @@ check that both give the same points.
 
 :func:`frame_points` is the boundary: named tuples of arrays in (:class:`KernelSurface`,
 :class:`KernelRegions`, :class:`TipParams`), one out (:class:`FramePoints`), units in the names.
-Inside, the compiled kernel takes the arrays one by one and returns (N, 7) rows: x, y (image px,
-sub-pixel), height (mm, NaN when unknown), area (px), hand x, hand y (px), hand at border (0/1).
+Inside, the compiled kernel takes the arrays one by one and returns (N, 8) rows: x, y (image px,
+sub-pixel), height (mm, NaN when unknown), area (px), hand x, hand y (px), hand at border (0/1),
+attachment (hand pixels within 2 px of the region).
 """
 
 from __future__ import annotations
@@ -25,7 +26,7 @@ import numpy as np
 
 from .fingertip import extremity, paper, project, split
 
-N_OUT = 7
+N_OUT = 8
 _A, _B = 0.955, 1.3693  # OpenCV's 3x3 distance-transform weights (DIST_L2, mask 3)
 _INF = 1e30
 
@@ -189,13 +190,15 @@ class TipParams(NamedTuple):
 class FramePoints(NamedTuple):
     """The touch points of a frame, parallel arrays of length N: contact (px, sub-pixel),
     height above the surface (mm, NaN when unknown), region area (px), centre of the attached
-    hand (px), whether that hand reaches the image border."""
+    hand (px), whether that hand reaches the image border, how many hand pixels lie within 2 px
+    of the region (its attachment: about twice its length in px)."""
 
     xy_px: np.ndarray
     height_mm: np.ndarray
     area_px: np.ndarray
     hand_xy_px: np.ndarray
     hand_at_border: np.ndarray
+    attach_px: np.ndarray
 
 
 def frame_points(depth: np.ndarray, hands: np.ndarray, hand_scale: int, surface: KernelSurface,
@@ -211,7 +214,7 @@ def frame_points(depth: np.ndarray, hands: np.ndarray, hand_scale: int, surface:
                         r.bbox_xywh, r.mask_buf, r.mask_start, float(p.tip_radius_px),
                         1 if p.paper else 0, int(p.paper_ds_px), float(p.paper_tt_mm))
     return FramePoints(out[:, 0:2].copy(), out[:, 2].copy(), out[:, 3].astype(np.int64),
-                       out[:, 4:6].copy(), out[:, 6] > 0)
+                       out[:, 4:6].copy(), out[:, 6] > 0, out[:, 7].astype(np.int64))
 
 
 @numba.njit(cache=True, nogil=True)
@@ -221,7 +224,7 @@ def _frame_points(
     core: np.ndarray, open_pad: int, boxes: np.ndarray, masks: np.ndarray, mask_start: np.ndarray,
     r0: float, method: int, paper_ds: int, paper_tt: float,
 ) -> np.ndarray:
-    """Touch points of all regions of a frame: (N, 7) rows (see the module doc).
+    """Touch points of all regions of a frame: (N, 8) rows (see the module doc).
 
     Each region is worked on in a window 2 rr + 2 px around its box (the growth reaches 2 rr,
     the hand attaches within 2 px); the band 3 r0 + 3 px around it is looked at only when other
@@ -298,12 +301,15 @@ def _frame_points(
                     sy += ey[j]
             if n_p == 0:
                 continue
-            phx, phy, pborder = hx, hy, border
+            phx, phy, pborder, patt = hx, hy, border, n_att
             if n_parts > 1:
                 na, ax, ay, ab = _attach(_near(part, 2), depth, high_lo, high_hi, hands, scale,
                                          x0, y0)
                 if na >= 3:
                     phx, phy, pborder = ax, ay, ab
+                # a long edge cut into "fingertips" is still one long attachment: each part
+                # gets at least its share of the whole region's
+                patt = max(na, n_att // n_parts)
             if method == 1:
                 px_, py_, ph, ok = paper(part, hs, phx, phy, paper_ds, paper_tt)
                 if not ok:
@@ -323,6 +329,7 @@ def _frame_points(
             out[n_out, 4] = phx + x0
             out[n_out, 5] = phy + y0
             out[n_out, 6] = 1.0 if pborder else 0.0
+            out[n_out, 7] = patt
             n_out += 1
             if n_out == out.shape[0]:
                 return out[:n_out]

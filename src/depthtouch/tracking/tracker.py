@@ -187,7 +187,7 @@ class Tracker:
             for i in members:
                 shift[i] = (k, step)
         down_frames = self.config.down_frames
-        weight = self._evidence_weights(area)
+        weight = self._evidence_weights(area, points.attach_px)
         for i, t in enumerate(tracks):
             j = matched_t.get(i)
             if i in shift:
@@ -254,22 +254,36 @@ class Tracker:
         self.tracks = keep
         return out
 
-    def _evidence_weights(self, area_px: list[int]) -> list[float]:
+    def _evidence_weights(self, area_px: list[int], attach_px: np.ndarray | None = None
+                          ) -> list[float]:
         """How much one frame of each point counts toward ``down`` (see TrackingConfig).
 
         A region of a fingertip's size (``tip_area_mm2`` range) counts a whole frame; a smaller
         one (a speck of noise at a finger's edge, a tip only grazing the band) or a larger one
         (a hovering finger or a forearm's edge lying in the band) counts ``weak_evidence``, so it
-        must persist for more frames before it is believed. Without a scale (no intrinsics) every
-        frame counts whole.
+        must persist for more frames before it is believed. A region attached to its hand along
+        more than ``attach_max_mm`` (the broad edge of a forearm or a palm lying in the band, not
+        a fingertip at the end of a finger) counts nothing. Without a scale (no intrinsics)
+        every frame counts whole.
         """
         scale = self.scale_mm_per_px
+        n = len(area_px)
+        if scale is None:
+            return [1.0] * n
         weak = self.config.weak_evidence
-        if scale is None or weak >= 1.0:
-            return [1.0] * len(area_px)
-        lo, hi = self.config.tip_area_min_mm2, self.config.tip_area_max_mm2
-        px_mm2 = scale * scale
-        return [1.0 if lo <= a * px_mm2 <= hi else weak for a in area_px]
+        if weak >= 1.0:
+            w = [1.0] * n
+        else:
+            lo, hi = self.config.tip_area_min_mm2, self.config.tip_area_max_mm2
+            px_mm2 = scale * scale
+            w = [1.0 if lo <= a * px_mm2 <= hi else weak for a in area_px]
+        # the attachment counts the hand pixels within 2 px of the region: an attachment w mm
+        # long gives up to 2 (w / scale + 4) of them (the ring is 2 px deep and reaches 2 px
+        # past either end)
+        long_px = 2.0 * (self.config.attach_max_mm / scale + 4.0)
+        if attach_px is not None and self.config.attach_max_mm > 0:
+            w = [0.0 if a > long_px else v for v, a in zip(w, attach_px.tolist(), strict=True)]
+        return w
 
     def _cost(self, pos: list[XY], ok_cont: list[bool], ok_new: list[bool]) -> list[list[float]]:
         """Gated distance of each track to each point (_BIG where it may not take the point).
