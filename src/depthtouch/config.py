@@ -251,6 +251,9 @@ class AdaptConfig:
         (default 3.0 mm).
     drift_tau_s: time constant of the slow update of unchanged pixels (temperature drift)
         (default 10 s, range [1, 3600]).
+    drift_gain: share of a stripe's median offset from the surface (over its unchanged pixels)
+        that moves the whole stripe at each visit, so a steady drift does not pile up into the
+        band (default 0.5, range [0, 1], 0 = off).
     stripes: the update visits one horizontal stripe of the image per frame, so that its cost is
         spread evenly over frames (default 24, range [1, 64]).
     bump_fraction: share of the surface changed at once that means the camera moved
@@ -264,6 +267,7 @@ class AdaptConfig:
     absorb_s: float = 0.5
     still_mm: float = 3.0
     drift_tau_s: float = 10.0
+    drift_gain: float = 0.5
     stripes: int = 24
     bump_fraction: float = 0.4
     bump_s: float = 0.5
@@ -273,6 +277,7 @@ class AdaptConfig:
         _range("adapt.absorb_s", self.absorb_s, 0.1, 60.0)
         _range("adapt.still_mm", self.still_mm, 0.0, 100.0)
         _range("adapt.drift_tau_s", self.drift_tau_s, 1.0, 3600.0)
+        _range("adapt.drift_gain", self.drift_gain, 0.0, 1.0)
         _range("adapt.stripes", self.stripes, 1, 64)
         _range("adapt.bump_fraction", self.bump_fraction, 0.0, 1.0, lo_open=True)
         _range("adapt.bump_s", self.bump_s, 0.0, 60.0)

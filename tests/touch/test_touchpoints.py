@@ -181,7 +181,7 @@ def test_attachment_is_a_fingers_width_for_a_tip_and_long_for_a_forearm_edge(bou
     for pitch in (20.0, 35.0, 60.0):
         tip = detect(bounds, [Finger(320, 240, 90, pitch_deg=pitch)])
         assert len(tip) == 1 and tip.attach_px is not None
-        assert 0 < tip.attach_px[0] and (tip.attach_px[0] / 2 - 4) * MM_PER_PX < 15.0
+        assert tip.attach_px[0] > 0 and (tip.attach_px[0] / 2 - 4) * MM_PER_PX < 15.0
     # a forearm resting on its edge: a raised block 70 mm wide, its rounded edge in the band
     arm = np.zeros((480, 640), np.float32)
     w_px, edge_px = int(70 / MM_PER_PX), int(12 / MM_PER_PX)

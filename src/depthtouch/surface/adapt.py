@@ -7,9 +7,10 @@ horizontal stripe of the image per frame (so the cost is spread evenly):
   ``absorb_s`` becomes surface (an object put down; likewise the table where it was taken away);
 - drift is followed: the stripe's unchanged pixels give the median offset of the frame from the
   surface, and the whole stripe (changed pixels too: the table under a hand drifts as well)
-  moves by half of it at each visit, so a steady drift (a ToF camera warming up, 0.5 mm/s) lags
-  by less than a millimetre instead of piling up into the touch band; what is left, drift that
-  differs from pixel to pixel, unchanged pixels follow slowly (time constant ``drift_tau_s``);
+  moves by ``drift_gain`` (half) of it at each visit, so a steady drift (a ToF camera warming
+  up, 0.5 mm/s) lags by less than a millimetre instead of piling up into the touch band; what
+  is left, drift that differs from pixel to pixel, unchanged pixels follow slowly (time
+  constant ``drift_tau_s``);
 - never absorbed: anything connected to a change that reaches the image border (a hand is
   attached to an arm that enters from outside the view, and the arm rises above the band), and
   anything within ``keep_out_mm`` of an active touch. A finger held still for minutes stays a
@@ -33,7 +34,6 @@ from .bounds import BandBounds, refresh_rows
 
 _SCALE = 4  # the whole-frame checks run on a 1/4 resolution view
 _BLOCK = 8  # the bump check compares a 1/8 view (2x2 means, every 8th pixel)
-_OFFSET_GAIN = 0.5  # share of a stripe's median offset applied per visit (see the module doc)
 _OFFSET_MIN_SHARE = 0.25  # ... when at least this share of its usable pixels are unchanged
 
 
@@ -163,11 +163,11 @@ class SurfaceAdapter:
         alpha = (min(1.0, (t - last) / cfg.drift_tau_s)
                  if math.isfinite(last) and t > last else -1.0)
         shifted = False
-        if alpha >= 0.0:
+        if alpha >= 0.0 and cfg.drift_gain > 0.0:
             off, n_un, n_ok = _stripe_offset(depth, b.surface_mm, b.factor, b.tl_mm, b.valid,
                                              y0, y1, float(b.to_mm))
             if n_ok and n_un >= _OFFSET_MIN_SHARE * n_ok and abs(off) > 1e-3:
-                _shift_rows(b.surface_mm, b.valid, y0, y1, np.float32(_OFFSET_GAIN * off))
+                _shift_rows(b.surface_mm, b.valid, y0, y1, np.float32(cfg.drift_gain * off))
                 shifted = True
         n_abs = _stripe_update(
             depth, b.surface_mm, b.factor, b.tl_mm, b.valid, self._since, self._prev,
