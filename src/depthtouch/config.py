@@ -174,6 +174,10 @@ class TrackingConfig:
         finger's width; a region attached along more than this (the edge of a forearm or a palm
         lying in the band) gives no evidence (default 30 mm, chosen on the hard suite's tune
         half; range [0, 10000], 0 turns the test off).
+    step_max_mm: a finger rises from the band gradually; a region whose attached hand pixels
+        lie higher than this (median, mm above the surface) is mixed or smeared pixels at the
+        side of a raised hand, not a fingertip, and gives no evidence (default 80 mm, chosen on
+        the hard suite's tune half: 60 lost a contact; range [0, 10000], 0 turns the test off).
     up_frames: frames a contact may be missing before ``up`` (grace, default 3, >= 1): bridges
         the frame or two in which fingertips side by side merge into one region.
     merge_mm: a missing contact within this distance of a contact seen this frame is taken as
@@ -194,6 +198,7 @@ class TrackingConfig:
     tip_area_max_mm2: float = 750.0
     weak_evidence: float = 0.4
     attach_max_mm: float = 30.0
+    step_max_mm: float = 80.0
     up_frames: int = 3
     merge_mm: float = 25.0
     merge_frames: int = 10
@@ -208,6 +213,7 @@ class TrackingConfig:
         _range("tracking.tip_area_max_mm2", self.tip_area_max_mm2, self.tip_area_min_mm2, 1e5)
         _range("tracking.weak_evidence", self.weak_evidence, 0.0, 1.0, lo_open=True)
         _range("tracking.attach_max_mm", self.attach_max_mm, 0.0, 10000.0)
+        _range("tracking.step_max_mm", self.step_max_mm, 0.0, 10000.0)
         _range("tracking.merge_mm", self.merge_mm, 0.0, 200.0)
         _range("tracking.merge_frames", self.merge_frames, 0, 300)
         _range("tracking.merge_area_ratio", self.merge_area_ratio, 0.0, 10.0)

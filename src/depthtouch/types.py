@@ -85,6 +85,8 @@ class TouchPoints:
         None means unknown (taken as True).
     attach_px: (N,) hand pixels within 2 px of the region, its attachment to the hand (about
         twice the attached length in px); None means unknown.
+    attach_height_mm: (N,) median height of those hand pixels above the surface (NaN when
+        none); None means unknown.
     """
 
     xy_px: np.ndarray
@@ -93,6 +95,7 @@ class TouchPoints:
     hand_xy_px: np.ndarray
     hand_at_border: np.ndarray | None = None
     attach_px: np.ndarray | None = None
+    attach_height_mm: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         n = self.xy_px.shape[0] if self.xy_px.ndim == 2 else -1
@@ -104,6 +107,8 @@ class TouchPoints:
             _check_shape("TouchPoints.hand_at_border", self.hand_at_border, (n,))
         if self.attach_px is not None:
             _check_shape("TouchPoints.attach_px", self.attach_px, (n,))
+        if self.attach_height_mm is not None:
+            _check_shape("TouchPoints.attach_height_mm", self.attach_height_mm, (n,))
 
     @classmethod
     def empty(cls) -> TouchPoints:
@@ -115,9 +120,10 @@ class TouchPoints:
     def __getitem__(self, index: np.ndarray | slice) -> TouchPoints:
         border = None if self.hand_at_border is None else self.hand_at_border[index]
         attach = None if self.attach_px is None else self.attach_px[index]
+        att_h = None if self.attach_height_mm is None else self.attach_height_mm[index]
         return TouchPoints(
             self.xy_px[index], self.height_mm[index], self.area_px[index], self.hand_xy_px[index],
-            border, attach,
+            border, attach, att_h,
         )
 
 

@@ -182,6 +182,8 @@ def test_attachment_is_a_fingers_width_for_a_tip_and_long_for_a_forearm_edge(bou
         tip = detect(bounds, [Finger(320, 240, 90, pitch_deg=pitch)])
         assert len(tip) == 1 and tip.attach_px is not None
         assert tip.attach_px[0] > 0 and (tip.attach_px[0] / 2 - 4) * MM_PER_PX < 15.0
+        # a finger rises from the band gradually: its pixels next to the region are just above Tu
+        assert tip.attach_height_mm is not None and 25.0 < tip.attach_height_mm[0] < 45.0
     # a forearm resting on its edge: a raised block 70 mm wide, its rounded edge in the band
     arm = np.zeros((480, 640), np.float32)
     w_px, edge_px = int(70 / MM_PER_PX), int(12 / MM_PER_PX)
@@ -190,3 +192,15 @@ def test_attachment_is_a_fingers_width_for_a_tip_and_long_for_a_forearm_edge(bou
     edge = detect(bounds, [], flat=arm)
     assert len(edge) >= 1 and edge.attach_px is not None
     assert ((edge.attach_px / 2 - 4) * MM_PER_PX > 30.0).all()
+
+
+def test_mixed_pixels_at_the_side_of_a_raised_hand_sit_next_to_a_high_step(bounds):
+    """A speck of the band (mixed pixels) at the side of a hand 150 mm up: its attached pixels
+    are the hand's, far higher than a finger rising from the band (TrackingConfig.step_max_mm)."""
+    hm = np.zeros((480, 640), np.float32)
+    hm[200:300, 300:] = 150.0  # a hand and arm reaching in from the right
+    speck = int(15 / MM_PER_PX)
+    hm[300:300 + 6, 360:360 + speck] = 12.0
+    tp = detect(bounds, [], flat=hm)
+    assert len(tp) >= 1 and tp.attach_height_mm is not None
+    assert (tp.attach_height_mm > 80.0).all()

@@ -332,3 +332,14 @@ def test_a_region_attached_along_more_than_a_finger_gives_no_evidence(
     assert ("down" in states) == goes_down
     off = Tracker(TrackingConfig(down_frames=2, attach_max_mm=0.0), scale_mm_per_px=scale)
     assert "down" in [s for f in run(off, [_attached(n, scale)] * 8) for _, s in f]
+
+
+@pytest.mark.parametrize(("step_mm", "goes_down"), [(35.0, True), (150.0, False), (np.nan, True)])
+def test_a_region_next_to_a_high_step_gives_no_evidence(step_mm: float, goes_down: bool) -> None:
+    """Mixed pixels at the side of a hand 150 mm up are not a fingertip; a finger rising from
+    the band (35 mm next to it) is; an unknown height takes nothing away."""
+    tip = TouchPoints(np.array([[100.0, 100.0]]), np.array([5.0]), np.array([300]),
+                      np.array([[np.nan, np.nan]]), None, np.array([10]), np.array([step_mm]))
+    tr = Tracker(TrackingConfig(down_frames=2, step_max_mm=80.0), scale_mm_per_px=1.0)
+    states = [s for f in run(tr, [tip] * 8) for _, s in f]
+    assert ("down" in states) == goes_down

@@ -63,7 +63,7 @@ def find_touch_points(
     if out.xy_px.shape[0] == 0:
         return TouchPoints.empty()
     return TouchPoints(out.xy_px, out.height_mm, out.area_px, out.hand_xy_px, out.hand_at_border,
-                       out.attach_px)
+                       out.attach_px, out.attach_height_mm)
 
 
 def _core_of(regions: Regions, shape: tuple[int, ...]) -> np.ndarray:

@@ -11,9 +11,9 @@ check that both give the same points.
 
 :func:`frame_points` is the boundary: named tuples of arrays in (:class:`KernelSurface`,
 :class:`KernelRegions`, :class:`TipParams`), one out (:class:`FramePoints`), units in the names.
-Inside, the compiled kernel takes the arrays one by one and returns (N, 8) rows: x, y (image px,
+Inside, the compiled kernel takes the arrays one by one and returns (N, 9) rows: x, y (image px,
 sub-pixel), height (mm, NaN when unknown), area (px), hand x, hand y (px), hand at border (0/1),
-attachment (hand pixels within 2 px of the region).
+attachment (hand pixels within 2 px of the region), their median height (mm).
 """
 
 from __future__ import annotations
@@ -26,7 +26,7 @@ import numpy as np
 
 from .fingertip import extremity, paper, project, split
 
-N_OUT = 8
+N_OUT = 9
 _A, _B = 0.955, 1.3693  # OpenCV's 3x3 distance-transform weights (DIST_L2, mask 3)
 _INF = 1e30
 
@@ -118,17 +118,19 @@ def _smooth_heights(depth: np.ndarray, surf: np.ndarray, fact: np.ndarray, valid
 
 @numba.njit(cache=True, nogil=True)
 def _attach(near: np.ndarray, depth: np.ndarray, high_lo: np.ndarray,
-            high_hi: np.ndarray, hands: np.ndarray, scale: int, x0: int, y0: int
-            ) -> tuple[int, float, float, bool]:
+            high_hi: np.ndarray, hands: np.ndarray, scale: int, x0: int, y0: int,
+            surf: np.ndarray, fact: np.ndarray, to_mm: float
+            ) -> tuple[int, float, float, bool, float]:
     """Hand pixels among the ``near`` pixels (those next to a mask, see :func:`_near`): count,
-    mean x, y (window), and whether any belongs to an arm reaching in from the border (hand map
-    level 2)."""
+    mean x, y (window), whether any belongs to an arm reaching in from the border (hand map
+    level 2), and their median height above the surface (mm)."""
     h, w = near.shape
     sh, sw = hands.shape
     n = 0
     sx = 0.0
     sy = 0.0
     border = False
+    hv = np.empty(h * w, np.float64)
     for y in range(h):
         for x in range(w):
             if not near[y, x]:
@@ -141,14 +143,15 @@ def _attach(near: np.ndarray, depth: np.ndarray, high_lo: np.ndarray,
                 continue
             lev = hands[cy, cx]
             if lev >= 1:
+                hv[n] = (surf[y0 + y, x0 + x] - d * to_mm) * fact[y0 + y, x0 + x]
                 n += 1
                 sx += x
                 sy += y
                 if lev == 2:
                     border = True
     if n == 0:
-        return 0, 0.0, 0.0, False
-    return n, sx / n, sy / n, border
+        return 0, 0.0, 0.0, False, np.nan
+    return n, sx / n, sy / n, border, float(np.median(hv[:n]))
 
 
 class KernelSurface(NamedTuple):
@@ -191,7 +194,8 @@ class FramePoints(NamedTuple):
     """The touch points of a frame, parallel arrays of length N: contact (px, sub-pixel),
     height above the surface (mm, NaN when unknown), region area (px), centre of the attached
     hand (px), whether that hand reaches the image border, how many hand pixels lie within 2 px
-    of the region (its attachment: about twice its length in px)."""
+    of the region (its attachment: about twice its length in px), their median height above the
+    surface (mm; a finger rises from the band gradually, the side of a raised hand does not)."""
 
     xy_px: np.ndarray
     height_mm: np.ndarray
@@ -199,6 +203,7 @@ class FramePoints(NamedTuple):
     hand_xy_px: np.ndarray
     hand_at_border: np.ndarray
     attach_px: np.ndarray
+    attach_height_mm: np.ndarray
 
 
 def frame_points(depth: np.ndarray, hands: np.ndarray, hand_scale: int, surface: KernelSurface,
@@ -214,7 +219,8 @@ def frame_points(depth: np.ndarray, hands: np.ndarray, hand_scale: int, surface:
                         r.bbox_xywh, r.mask_buf, r.mask_start, float(p.tip_radius_px),
                         1 if p.paper else 0, int(p.paper_ds_px), float(p.paper_tt_mm))
     return FramePoints(out[:, 0:2].copy(), out[:, 2].copy(), out[:, 3].astype(np.int64),
-                       out[:, 4:6].copy(), out[:, 6] > 0, out[:, 7].astype(np.int64))
+                       out[:, 4:6].copy(), out[:, 6] > 0, out[:, 7].astype(np.int64),
+                       out[:, 8].copy())
 
 
 @numba.njit(cache=True, nogil=True)
@@ -224,7 +230,7 @@ def _frame_points(
     core: np.ndarray, open_pad: int, boxes: np.ndarray, masks: np.ndarray, mask_start: np.ndarray,
     r0: float, method: int, paper_ds: int, paper_tt: float,
 ) -> np.ndarray:
-    """Touch points of all regions of a frame: (N, 8) rows (see the module doc).
+    """Touch points of all regions of a frame: (N, 9) rows (see the module doc).
 
     Each region is worked on in a window 2 rr + 2 px around its box (the growth reaches 2 rr,
     the hand attaches within 2 px); the band 3 r0 + 3 px around it is looked at only when other
@@ -254,7 +260,8 @@ def _frame_points(
             continue
         # --- the hand: hand pixels next to the region (a flat object or noise has none) ----
         near = _near(reg, 2)
-        n_att, hx, hy, border = _attach(near, depth, high_lo, high_hi, hands, scale, x0, y0)
+        n_att, hx, hy, border, att_h = _attach(near, depth, high_lo, high_hi, hands, scale, x0,
+                                               y0, surf, fact, to_mm)
         if n_att < 3:
             continue
         ex = np.empty(area, np.int64)
@@ -303,8 +310,8 @@ def _frame_points(
                 continue
             phx, phy, pborder, patt = hx, hy, border, n_att
             if n_parts > 1:
-                na, ax, ay, ab = _attach(_near(part, 2), depth, high_lo, high_hi, hands, scale,
-                                         x0, y0)
+                na, ax, ay, ab, _ = _attach(_near(part, 2), depth, high_lo, high_hi, hands,
+                                            scale, x0, y0, surf, fact, to_mm)
                 if na >= 3:
                     phx, phy, pborder = ax, ay, ab
                 # a long edge cut into "fingertips" is still one long attachment: each part
@@ -330,6 +337,7 @@ def _frame_points(
             out[n_out, 5] = phy + y0
             out[n_out, 6] = 1.0 if pborder else 0.0
             out[n_out, 7] = patt
+            out[n_out, 8] = att_h
             n_out += 1
             if n_out == out.shape[0]:
                 return out[:n_out]

@@ -187,7 +187,7 @@ class Tracker:
             for i in members:
                 shift[i] = (k, step)
         down_frames = self.config.down_frames
-        weight = self._evidence_weights(area, points.attach_px)
+        weight = self._evidence_weights(area, points.attach_px, points.attach_height_mm)
         for i, t in enumerate(tracks):
             j = matched_t.get(i)
             if i in shift:
@@ -254,8 +254,8 @@ class Tracker:
         self.tracks = keep
         return out
 
-    def _evidence_weights(self, area_px: list[int], attach_px: np.ndarray | None = None
-                          ) -> list[float]:
+    def _evidence_weights(self, area_px: list[int], attach_px: np.ndarray | None = None,
+                          attach_height_mm: np.ndarray | None = None) -> list[float]:
         """How much one frame of each point counts toward ``down`` (see TrackingConfig).
 
         A region of a fingertip's size (``tip_area_mm2`` range) counts a whole frame; a smaller
@@ -263,7 +263,9 @@ class Tracker:
         (a hovering finger or a forearm's edge lying in the band) counts ``weak_evidence``, so it
         must persist for more frames before it is believed. A region attached to its hand along
         more than ``attach_max_mm`` (the broad edge of a forearm or a palm lying in the band, not
-        a fingertip at the end of a finger) counts nothing. Without a scale (no intrinsics)
+        a fingertip at the end of a finger) counts nothing, and so does one whose attached hand
+        pixels lie higher than ``step_max_mm`` (a finger rises from the band gradually; mixed
+        pixels at the side of a raised hand jump). Without a scale (no intrinsics)
         every frame counts whole.
         """
         scale = self.scale_mm_per_px
@@ -283,6 +285,11 @@ class Tracker:
         long_px = 2.0 * (self.config.attach_max_mm / scale + 4.0)
         if attach_px is not None and self.config.attach_max_mm > 0:
             w = [0.0 if a > long_px else v for v, a in zip(w, attach_px.tolist(), strict=True)]
+        step = self.config.step_max_mm
+        if attach_height_mm is not None and step > 0:
+            # (an unknown height, NaN, compares False: no evidence taken away)
+            w = [0.0 if a > step else v
+                 for v, a in zip(w, attach_height_mm.tolist(), strict=True)]
         return w
 
     def _cost(self, pos: list[XY], ok_cont: list[bool], ok_new: list[bool]) -> list[list[float]]:
