@@ -191,3 +191,18 @@ def test_pure_helpers():
     assert inside_px(poly, (90, 240)) == pytest.approx(-10)
     assert predict((0, 0), (100, 50), 0.5, 0.1) == pytest.approx((10, 5))
     assert predict((0, 0), (100, 50), -1.0, 0.1) == (0, 0)
+
+
+def test_a_lost_camera_ends_only_the_touches_it_alone_saw():
+    f = fusion()
+    f.update(0, 0.0, 0, [ev(1, "down", 500, 200)])  # A: a finger in the overlap
+    out = f.update(1, 0.01, 0, [ev(5, "down", 501, 200), ev(6, "down", 800, 300),
+                                ev(7, "down", 460, 400)])  # B: the same one, and two of its own
+    assert sorted(e.id for e in out) == [1, 2, 3]
+    out = f.drop_camera(1, 1)  # B unplugged: its own touches end at once, even near its edge
+    assert sorted((e.id, e.state) for e in out) == [(2, "up"), (3, "up")]
+    out = f.update(0, 0.033, 1, [ev(1, "move", 505, 200)])
+    assert [(e.id, e.state) for e in out] == [(1, "move")] and out[0].extra["cam"] == 0
+    out = f.update(1, 0.04, 2, [ev(9, "down", 506, 200)])  # B is back: it joins the same touch
+    assert [(e.id, e.state) for e in out] == [(1, "move")]
+    assert f.drop_camera(0, 3) == [] and f.active_ids == [1]

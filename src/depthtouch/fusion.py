@@ -215,6 +215,26 @@ class Fusion:
         self._now_s = now
         return out
 
+    def drop_camera(self, cam: int, frame: int) -> list[TouchEvent]:
+        """Camera ``cam`` was lost: forget its observations. The fused touches it alone saw end
+        now (their ``up`` is returned, at the latest time fused); those another camera sees
+        keep their ids. Held touches wait as before."""
+        now = self._now_s if math.isfinite(self._now_s) else 0.0
+        ended: list[_Fused] = []
+        for key in [k for k in self._obs if k[0] == cam]:
+            self._obs.pop(key, None)
+        for key in [k for k in self._owner if k[0] == cam]:
+            f = self._fused.get(self._owner.pop(key))
+            if f is None:
+                continue
+            f.members.pop(cam, None)
+            if not f.members and f.hold_until_s is None:
+                self._end(f)
+                ended.append(f)
+        self._close_since = {k: v for k, v in self._close_since.items()
+                             if k[0] in self._fused and k[1] in self._fused}
+        return [self._event(f, frame, now, "up") for f in ended if f.announced]
+
     # --- observations -------------------------------------------------------------------------
     def _observe(self, cam: int, t_s: float, e: TouchEvent) -> _Obs:
         sx, sy = e.extra.get("sx"), e.extra.get("sy")

@@ -168,6 +168,20 @@ class MultiPipeline:
             self._last = out
         return out
 
+    def end_camera(self, cam: int) -> FrameResult | None:
+        """Camera ``cam`` was lost (a gap in its stream): its pipeline ends its touches (and
+        starts its surface learning over if unfinished); of the fused touches, only those this
+        camera alone saw end (``up`` on the last frame); the others keep their ids."""
+        if not 0 <= cam < len(self.pipelines):
+            raise SourceError(f"gap of camera {cam}, but there are {len(self.pipelines)}")
+        self.pipelines[cam].finish()  # its own ids end; the fusion forgets them below
+        last = self._last
+        if last is None:
+            return None
+        events = self.fusion.drop_camera(cam, last.frame.index)
+        return FrameResult(last.frame, events, last.points, "ended", {}, last.learn_progress,
+                           "", last.surface)
+
     def finish(self) -> FrameResult | None:
         """End every camera's touches and every fused touch (``up`` on the last frame)."""
         events: list[TouchEvent] = []

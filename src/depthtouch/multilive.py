@@ -7,7 +7,8 @@ keeps each camera's newest frame, and the loop takes them oldest first. Device c
 different cameras are not comparable, so every frame is stamped with the loop's monotonic clock
 when it arrives: that is the time the fusion compares. The loop is
 :func:`~depthtouch.driver.drive` with a :class:`~depthtouch.multicam.MultiPipeline`.
-A camera that is lost and reopened ends every touch (as with one camera).
+A camera that is lost and reopened ends only the touches it alone was seeing; a touch another
+camera sees keeps its id.
 """
 
 from __future__ import annotations
@@ -135,7 +136,7 @@ class LiveMerge:
                 if item is _END:
                     break
                 if isinstance(item, StreamGap):
-                    yield StreamGap(f"camera {cam}: {item.reason}")
+                    yield StreamGap(f"camera {cam}: {item.reason}", cam=cam)
                 elif isinstance(item, Frame):
                     yield CameraFrame.of(item, cam, index=seq, timestamp_s=self.clock() - t0)
                     seq += 1
