@@ -258,7 +258,7 @@ def replay_multi(
     recording through its own pipeline, merged by time, fused, into the outputs asked for.
     The recordings must share a clock (their timestamps are compared as they are)."""
     from .outputs import open_outputs
-    from .replay import _check_surface_fits
+    from .replay import check_surface_fits
     from .sources import open_source
 
     cals = open_calibrations(calibration_paths, len(recordings))
@@ -269,7 +269,7 @@ def replay_multi(
     with contextlib.ExitStack() as stack:
         sources = [stack.enter_context(open_source(r)) for r in recordings]
         for s in sources:
-            _check_surface_fits(s, None, surface_frames, cfg)
+            check_surface_fits(s, None, surface_frames, cfg)
         outputs = stack.enter_context(open_outputs(events_path=events_path, tuio=tuio,
                                                    calibration=cals[0], uinput=uinput))
         multi = MultiPipeline([Pipeline(cfg, calibration=c, surface_frames=surface_frames,
