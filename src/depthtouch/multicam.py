@@ -133,6 +133,11 @@ class MultiPipeline:
         self.fusion = Fusion(fusion)
         self._views: set[int] = set()
         self._last: FrameResult | None = None
+        self._pending: dict[int, Calibration] = {}  # from the web page, applied by the loop
+        #: each camera's depth image size, known from its first processed frame
+        self.resolutions: list[tuple[int, int] | None] = [None] * len(self.pipelines)
+        #: increases whenever a camera's image size or calibration changes (its screen part)
+        self.views_version = 0
 
     @property
     def learning(self) -> bool:
@@ -143,15 +148,38 @@ class MultiPipeline:
     def calibration(self) -> object:
         return self.pipelines[0].calibration
 
+    @property
+    def calibrations(self) -> list[Calibration]:
+        """Each camera's calibration to the shared screen, in camera order."""
+        return [p.calibration for p in self.pipelines]  # type: ignore[misc]
+
+    def set_camera_calibration(self, cam: int, calibration: Calibration) -> None:
+        """Map camera ``cam`` with this calibration from its next frame on (the web page's
+        calibration flow; any thread). ConfigError for a camera out of range or another
+        screen size than the others'."""
+        if not 0 <= cam < len(self.pipelines):
+            raise ConfigError(f"camera {cam} is out of range; give 0..{len(self.pipelines) - 1}")
+        others = {tuple(c.screen_wh) for k, c in enumerate(self.calibrations) if k != cam}
+        if others and others != {tuple(calibration.screen_wh)}:
+            raise ConfigError(f"camera {cam}'s calibration is for a {calibration.screen_wh} "
+                              f"screen, the others' for {sorted(others)}; use the same screen")
+        self._pending[cam] = calibration
+
     def process(self, frame: Frame) -> FrameResult:
         cam = getattr(frame, "cam", 0)
         if not 0 <= cam < len(self.pipelines):
             raise SourceError(f"frame of camera {cam}, but there are {len(self.pipelines)}")
         pipe = self.pipelines[cam]
+        cal = self._pending.pop(cam, None)
+        if cal is not None:
+            pipe.set_calibration(cal)
+            self._views.discard(cam)
         r = pipe.process(frame)
         if cam not in self._views and r.status != "skipped":
             self.fusion.set_view(cam, view_polygon(pipe.calibration, r.frame.resolution_wh))
             self._views.add(cam)
+            self.resolutions[cam] = r.frame.resolution_wh
+            self.views_version += 1
         t0 = time.perf_counter()
         events = self.fusion.update(cam, r.frame.timestamp_s, r.frame.index, r.events,
                                     emit=getattr(frame, "last_of_instant", True))

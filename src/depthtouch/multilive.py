@@ -161,10 +161,13 @@ def run_live_multi(
     live_config: LiveConfig | None = None,
     max_seconds: float | None = None,
     show_status: bool = True,
+    serve: str | None = None,
     extra_sinks: Sequence[Sink] = (),
 ) -> LiveResult:
     """Run several cameras (or paced recordings) fused onto one screen until Ctrl-C,
-    ``max_seconds`` or the end of every source; returns the counts (see ``run_live``)."""
+    ``max_seconds`` or the end of every source; returns the counts (see ``run_live``).
+    serve: "HOST:PORT" for the web page: the fused touches, each camera's part of the screen
+    and the calibration flow per camera (docs/multicam.md)."""
     from .outputs import open_outputs
     from .pipeline import Pipeline
     from .sources import is_live_spec, open_source
@@ -193,6 +196,13 @@ def run_live_multi(
     timer: threading.Timer | None = None
     with open_outputs(events_path=events_path, tuio=tuio, calibration=cals[0],
                       uinput=uinput) as outputs, contextlib.ExitStack() as stack:
+        sinks = [*outputs.sinks, *extra_sinks]
+        if serve:
+            from .web.serve import WebPage
+
+            page = stack.enter_context(WebPage(serve, multi, source_name=" + ".join(sources),
+                                               camera_names=sources))
+            sinks += page.sinks
         status = stack.enter_context(RichStatusLine()) if show_status else None
         board = StatusBoard(merged, None, status, live_config.status_hz, clock)  # type: ignore[arg-type]
         if max_seconds:
@@ -200,7 +210,7 @@ def run_live_multi(
             timer.daemon = True
             timer.start()
         try:
-            drive(merged, multi, [*outputs.sinks, *extra_sinks], stop=stop, on_result=board,
+            drive(merged, multi, sinks, stop=stop, on_result=board,
                   lenient=True, flush_interval_s=live_config.flush_interval_s, stats=stats)
         except KeyboardInterrupt:
             result.interrupted = True
