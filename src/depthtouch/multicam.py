@@ -32,7 +32,7 @@ from .errors import ConfigError, SourceError
 from .fusion import Fusion, FusionConfig, view_polygon
 from .outputs.base import Sink
 from .pipeline import Pipeline
-from .types import Frame, FrameResult, StreamGap, TouchEvent
+from .types import Closing, Frame, FrameResult, StreamGap, TouchEvent
 
 
 @dataclass(frozen=True)
@@ -54,9 +54,10 @@ class CameraFrame(Frame):
         return cls(**values, cam=cam, last_of_instant=last_of_instant)
 
 
-class MergedSource:
+class MergedSource(Closing):
     """The frames of several sources in timestamp order (ties: camera order), tagged with
     their camera. For recordings that share a clock (recorded together, or cut from one).
+    :meth:`close` closes every source (safe twice).
 
     A merged frame's ``index`` counts instants (distinct timestamps) from 0: cameras in step
     keep their own frame numbers; out of step, every frame is an instant of its own."""
@@ -69,6 +70,12 @@ class MergedSource:
 
     def __len__(self) -> int:
         return sum(len(s) for s in self.sources)  # type: ignore[arg-type,misc]
+
+    def close(self) -> None:
+        for s in self.sources:
+            close = getattr(s, "close", None)
+            if close is not None:
+                close()
 
     def frames(self) -> Iterator[Frame | StreamGap]:
         its = [iter(s.frames()) for s in self.sources]  # type: ignore[attr-defined]
