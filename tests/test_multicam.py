@@ -254,3 +254,13 @@ def test_run_two_sources_fuses_live(tmp_path: Path, npz_recording: Path, cli) ->
     assert {e.id for e in events} == {1}
     assert [e.state for e in events].count("down") == 1 and events[-1].state == "up"
     assert {e.extra["cam"] for e in events} <= {0, 1}
+
+
+def test_run_two_sources_with_the_web_page(tmp_path: Path, npz_recording: Path, cli) -> None:
+    """``run --serve`` takes several sources: the page (each camera's part) beside the outputs."""
+    cal = save_calibration(Calibration(np.eye(3), (80, 60), 0.0), tmp_path / "cal.json")
+    out = tmp_path / "live.jsonl"
+    r = cli("run", "--source", npz_recording, "--source", npz_recording, "--calibration", cal,
+            "--calibration", cal, "--serve", "127.0.0.1:0", "--events", out, "-q")
+    assert r.rc == 0, r.err
+    assert {e.id for e in read_events(out)} == {1}
