@@ -191,3 +191,43 @@ def test_pure_helpers():
     assert inside_px(poly, (90, 240)) == pytest.approx(-10)
     assert predict((0, 0), (100, 50), 0.5, 0.1) == pytest.approx((10, 5))
     assert predict((0, 0), (100, 50), -1.0, 0.1) == (0, 0)
+
+
+def test_a_lost_camera_ends_only_the_touches_it_alone_saw():
+    f = fusion()
+    f.update(0, 0.0, 0, [ev(1, "down", 500, 200)])  # A: a finger in the overlap
+    out = f.update(1, 0.01, 0, [ev(5, "down", 501, 200), ev(6, "down", 800, 300),
+                                ev(7, "down", 460, 400)])  # B: the same one, and two of its own
+    assert sorted(e.id for e in out) == [1, 2, 3]
+    out = f.drop_camera(1, 1)  # B unplugged: its own touches end at once, even near its edge
+    assert sorted((e.id, e.state) for e in out) == [(2, "up"), (3, "up")]
+    out = f.update(0, 0.033, 1, [ev(1, "move", 505, 200)])
+    assert [(e.id, e.state) for e in out] == [(1, "move")] and out[0].extra["cam"] == 0
+    out = f.update(1, 0.04, 2, [ev(9, "down", 506, 200)])  # B is back: it joins the same touch
+    assert [(e.id, e.state) for e in out] == [(1, "move")]
+    assert f.drop_camera(0, 3) == [] and f.active_ids == [1]
+
+
+def test_a_cameras_track_that_moves_to_another_finger_leaves_its_fused_touch():
+    """Two fingers cross in the overlap; B sees both, A only one, and A's tracker carries its
+    id from the right-moving finger over to the left-moving one. A's track leaves the first
+    fused touch (B alone goes on with it) and joins the second."""
+    f = fusion()
+    right_id = left_id = None
+    for k in range(16):
+        t = k / 30.0
+        xr, xl = 470.0 + 5 * k, 530.0 - 5 * k  # cross at k = 6
+        out = f.update(1, t, k, [ev(1, "down" if k == 0 else "move", xr, 230),
+                                 ev(2, "down" if k == 0 else "move", xl, 215)], emit=False)
+        a_x, a_y = (xr, 230) if k < 6 else (xl, 215)  # camera A switches fingers
+        out = f.update(0, t, k, [ev(9, "down" if k == 0 else "move", a_x, a_y)])
+        assert len(out) == 2 and {e.state for e in out} <= {"down", "move"}
+        if k == 0:
+            right_id, left_id = sorted((e.extra["sy"], e.id) for e in out)[1][1], \
+                sorted((e.extra["sy"], e.id) for e in out)[0][1]
+        got = {e.id: e for e in out}
+        assert set(got) == {right_id, left_id}  # no new touch, no end
+        if k >= 10:  # A's track left the right-moving finger's touch and joined the other
+            assert got[right_id].extra["sx"] == pytest.approx(xr, abs=1.0)
+            assert got[left_id].extra["sx"] == pytest.approx(xl, abs=1.0)
+            assert got[left_id].extra["sy"] == pytest.approx(215.0, abs=1.0)

@@ -115,6 +115,72 @@ def test_two_hands_one_in_each_view() -> None:
     assert len({e.id for e in events}) == len(downs)  # every id went down once
 
 
+def test_a_lost_camera_ends_only_the_touches_it_alone_saw() -> None:
+    """Camera 0 sees the whole image, camera 1 its right part (x >= 340): the hand near
+    x = 560 is seen by both, the one near x = 285 by camera 0 alone. Camera 0 is unplugged
+    (a gap in the one loop) while both are down: the left touch ends, the right one goes on
+    under its id with camera 1; camera 0, back, joins it again."""
+    from depthtouch.driver import drive
+    from depthtouch.types import FrameResult
+
+    rec = render_scene("multitouch", seed=1)
+    n, h, w = rec.depth.shape
+    off = 340
+    k_right = rec.K.copy()
+    k_right[0, 2] -= off
+    shift = np.array([[1.0, 0.0, off], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]])
+    sources = [ArraySource.of_recording(rec),
+               ArraySource(np.ascontiguousarray(rec.depth[:, :, off:]), rec.timestamps_s,
+                           rec.depth_scale_m, k_right)]
+    multi = MultiPipeline([Pipeline(calibration=Calibration(np.eye(3), (w, h), 0.0),
+                                    strict=True),
+                           Pipeline(calibration=Calibration(shift, (w, h), 0.0), strict=True)])
+    results: list[FrameResult] = []
+    down: dict[int, int] = {}  # fused id -> instants it has been down (one result each)
+    sx: dict[int, float] = {}  # fused id -> its last sx
+
+    def seen(r: FrameResult) -> None:
+        results.append(r)
+        for e in r.events:
+            if e.state == "up":
+                down.pop(e.id, None)
+            else:
+                down[e.id] = down.get(e.id, 0) + 1
+                sx[e.id] = e.extra["sx"]
+
+    def both_hands() -> bool:
+        settled = [i for i, k in down.items() if k >= 5]
+        return any(sx[i] < off for i in settled) and any(sx[i] > off + 60 for i in settled)
+
+    class WithGap:
+        gap_at: int | None = None
+
+        def frames(self):  # type: ignore[no-untyped-def]
+            for f in merge_by_time(sources).frames():
+                if self.gap_at is None and both_hands():
+                    self.gap_at = len(results)
+                    yield StreamGap("camera 0: unplugged", cam=0)
+                yield f
+
+    src = WithGap()
+    drive(src, multi, [], on_result=seen)
+    assert src.gap_at is not None
+    before = {e.id: e for r in results[:src.gap_at] for e in r.events}
+    gap = results[src.gap_at]
+    assert gap.status == "ended"
+    live = [i for i, e in before.items() if e.state != "up"]
+    left = {i for i in live if before[i].extra["sx"] < off}
+    right = {i for i in live if before[i].extra["sx"] > off + 60}
+    assert left and right
+    assert {(e.id, e.state) for e in gap.events} == {(i, "up") for i in left}  # camera 0's alone
+    for i in right:  # seen by both: the same id goes on with camera 1
+        after = [e for r in results[src.gap_at + 1:] for e in r.events if e.id == i]
+        assert after[0].state == "move" and after[0].extra["cam"] == 1
+        assert [e.state for e in after].count("up") == 1 and after[-1].state == "up"
+    assert any(e.extra["cam"] == 0 for r in results[src.gap_at + 1:] for e in r.events
+               if e.id in right)  # camera 0, back, joins them again
+
+
 def test_merged_sources_are_in_time_order_with_instants_counted() -> None:
     d = np.zeros((3, 4, 4), np.uint16)
     a = ArraySource(d, np.array([0.0, 0.1, 0.2]))
@@ -188,3 +254,13 @@ def test_run_two_sources_fuses_live(tmp_path: Path, npz_recording: Path, cli) ->
     assert {e.id for e in events} == {1}
     assert [e.state for e in events].count("down") == 1 and events[-1].state == "up"
     assert {e.extra["cam"] for e in events} <= {0, 1}
+
+
+def test_run_two_sources_with_the_web_page(tmp_path: Path, npz_recording: Path, cli) -> None:
+    """``run --serve`` takes several sources: the page (each camera's part) beside the outputs."""
+    cal = save_calibration(Calibration(np.eye(3), (80, 60), 0.0), tmp_path / "cal.json")
+    out = tmp_path / "live.jsonl"
+    r = cli("run", "--source", npz_recording, "--source", npz_recording, "--calibration", cal,
+            "--calibration", cal, "--serve", "127.0.0.1:0", "--events", out, "-q")
+    assert r.rc == 0, r.err
+    assert {e.id for e in read_events(out)} == {1}

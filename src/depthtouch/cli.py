@@ -222,7 +222,7 @@ def _add_run(sub: argparse._SubParsersAction) -> None:
             from .multicam import check_single_only
             from .multilive import run_live_multi
 
-            check_single_only(surface=a.surface, save_surface=a.save_surface, serve=a.serve)
+            check_single_only(surface=a.surface, save_surface=a.save_surface)
             opts = {}
             for s in sources:
                 opts = _camera_options(a, s)
@@ -232,7 +232,7 @@ def _add_run(sub: argparse._SubParsersAction) -> None:
                                  events_path=a.events, tuio=a.tuio, uinput=a.uinput,
                                  source_options=opts, max_seconds=a.seconds,
                                  live_config=LiveConfig(countdown_s=countdown),
-                                 show_status=not a.quiet, fusion=_fusion(a))
+                                 show_status=not a.quiet, fusion=_fusion(a), serve=a.serve)
             if not a.quiet:
                 print(res.describe())
             return 0

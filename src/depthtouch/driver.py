@@ -9,7 +9,8 @@ Per frame the pipeline makes one :class:`~depthtouch.types.FrameResult` and ever
 At the end of the stream (or on ``stop``, or Ctrl-C) the touches still down are ended with
 ``up`` on the last frame, so that no application keeps a finger down. A source may yield a
 :class:`~depthtouch.types.StreamGap` between frames (a camera was lost and reopened): the touches
-are ended there too.
+are ended there too; with several cameras (a :class:`CameraProcessor`), a gap naming its camera
+ends only the touches that camera alone was seeing.
 """
 
 from __future__ import annotations
@@ -20,7 +21,7 @@ import threading
 import time
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field
-from typing import Protocol
+from typing import Protocol, runtime_checkable
 
 import numpy as np
 
@@ -38,6 +39,14 @@ class Processor(Protocol):
     def process(self, frame: Frame) -> FrameResult: ...
 
     def finish(self) -> FrameResult | None: ...
+
+
+@runtime_checkable
+class CameraProcessor(Processor, Protocol):
+    """A processor of several cameras (:class:`depthtouch.multicam.MultiPipeline`): one camera
+    lost ends only what that camera alone was seeing."""
+
+    def end_camera(self, cam: int) -> FrameResult | None: ...
 
 
 class FrameSource(Protocol):
@@ -147,8 +156,11 @@ def drive(
         if on_result is not None:
             on_result(result)
 
-    def end_touches() -> None:
-        tail = pipeline.finish()
+    def end_touches(gap: StreamGap | None = None) -> None:
+        if gap is not None and gap.cam is not None and isinstance(pipeline, CameraProcessor):
+            tail = pipeline.end_camera(gap.cam)
+        else:
+            tail = pipeline.finish()
         if tail is not None and tail.events:
             deliver(tail)
 
@@ -162,7 +174,7 @@ def drive(
                     break
                 if isinstance(item, StreamGap):
                     stats.gaps += 1
-                    end_touches()
+                    end_touches(item)
                     continue
                 if pacer is not None and pacer.until(item.timestamp_s):
                     break

@@ -192,6 +192,8 @@ class Fusion:
                 f = self._join(cam, obs, now)
                 f.members[cam] = e.id
                 self._owner[key] = f.id
+            else:
+                self._split(key, obs, now)
         self._merge_duplicates(now, ended)
         for f in list(self._fused.values()):
             if not f.members and f.hold_until_s is not None and now >= f.hold_until_s:
@@ -214,6 +216,26 @@ class Fusion:
         self.reset()
         self._now_s = now
         return out
+
+    def drop_camera(self, cam: int, frame: int) -> list[TouchEvent]:
+        """Camera ``cam`` was lost: forget its observations. The fused touches it alone saw end
+        now (their ``up`` is returned, at the latest time fused); those another camera sees
+        keep their ids. Held touches wait as before."""
+        now = self._now_s if math.isfinite(self._now_s) else 0.0
+        ended: list[_Fused] = []
+        for key in [k for k in self._obs if k[0] == cam]:
+            self._obs.pop(key, None)
+        for key in [k for k in self._owner if k[0] == cam]:
+            f = self._fused.get(self._owner.pop(key))
+            if f is None:
+                continue
+            f.members.pop(cam, None)
+            if not f.members and f.hold_until_s is None:
+                self._end(f)
+                ended.append(f)
+        self._close_since = {k: v for k, v in self._close_since.items()
+                             if k[0] in self._fused and k[1] in self._fused}
+        return [self._event(f, frame, now, "up") for f in ended if f.announced]
 
     # --- observations -------------------------------------------------------------------------
     def _observe(self, cam: int, t_s: float, e: TouchEvent) -> _Obs:
@@ -250,8 +272,8 @@ class Fusion:
         v, t = (o.v, o.t_s) if o is not None else ((0.0, 0.0), now)
         return predict(f.last_sxy, v, now - t, self.config.max_predict_s)
 
-    def _join(self, cam: int, obs: _Obs, now: float) -> _Fused:
-        """The fused touch this camera's new touch belongs to (a new one when none is near)."""
+    def _nearest(self, cam: int, obs: _Obs, now: float) -> _Fused | None:
+        """The nearest fused touch within ``gate_px`` that camera ``cam`` does not see."""
         best: _Fused | None = None
         best_d = self.config.gate_px
         for f in self._fused.values():
@@ -261,6 +283,32 @@ class Fusion:
             d = math.hypot(p[0] - obs.sxy[0], p[1] - obs.sxy[1])
             if d <= best_d:
                 best, best_d = f, d
+        return best
+
+    def _split(self, key: tuple[int, int], obs: _Obs, now: float) -> None:
+        """A camera's touch that has left where the other cameras see its fused touch (its
+        tracker moved on to a nearby finger) leaves it: beyond ``gate_px / 2`` of them it joins
+        another fused touch within the gate; beyond ``gate_px`` it becomes a new one."""
+        cam = key[0]
+        f = self._fused[self._owner[key]]
+        if len(f.members) < 2:
+            return
+        p = self._position(f, now, skip=cam)[0]
+        d = math.hypot(p[0] - obs.sxy[0], p[1] - obs.sxy[1])
+        if d <= self.config.gate_px / 2.0:
+            return
+        other = self._nearest(cam, obs, now)
+        if other is None and d <= self.config.gate_px:
+            return
+        f.members.pop(cam)
+        g = other if other is not None else self._join(cam, obs, now)
+        g.hold_until_s = None
+        g.members[cam] = key[1]
+        self._owner[key] = g.id
+
+    def _join(self, cam: int, obs: _Obs, now: float) -> _Fused:
+        """The fused touch this camera's new touch belongs to (a new one when none is near)."""
+        best = self._nearest(cam, obs, now)
         if best is not None:
             best.hold_until_s = None
             return best
@@ -323,11 +371,15 @@ class Fusion:
             self._close_since.pop((ia, ib), None)
 
     # --- output -------------------------------------------------------------------------------
-    def _position(self, f: _Fused, now: float) -> tuple[tuple[float, float], int, _Obs]:
-        """Blended screen position of a live fused touch, its best camera and observation."""
+    def _position(self, f: _Fused, now: float, skip: int | None = None
+                  ) -> tuple[tuple[float, float], int, _Obs]:
+        """Blended screen position of a live fused touch, its best camera and observation
+        (leaving camera ``skip`` out)."""
         cfg = self.config
         pts, ws, cands = [], [], []
         for cam, tid in f.members.items():
+            if cam == skip:
+                continue
             o = self._obs[(cam, tid)]
             w = min(max(o.inside_px / cfg.blend_px, 0.0), 1.0)
             pts.append(predict(o.sxy, o.v, now - o.t_s, cfg.max_predict_s))

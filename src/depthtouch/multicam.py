@@ -32,7 +32,7 @@ from .errors import ConfigError, SourceError
 from .fusion import Fusion, FusionConfig, view_polygon
 from .outputs.base import Sink
 from .pipeline import Pipeline
-from .types import Frame, FrameResult, StreamGap, TouchEvent
+from .types import Closing, Frame, FrameResult, StreamGap, TouchEvent
 
 
 @dataclass(frozen=True)
@@ -54,9 +54,10 @@ class CameraFrame(Frame):
         return cls(**values, cam=cam, last_of_instant=last_of_instant)
 
 
-class MergedSource:
+class MergedSource(Closing):
     """The frames of several sources in timestamp order (ties: camera order), tagged with
     their camera. For recordings that share a clock (recorded together, or cut from one).
+    :meth:`close` closes every source (safe twice).
 
     A merged frame's ``index`` counts instants (distinct timestamps) from 0: cameras in step
     keep their own frame numbers; out of step, every frame is an instant of its own."""
@@ -69,6 +70,12 @@ class MergedSource:
 
     def __len__(self) -> int:
         return sum(len(s) for s in self.sources)  # type: ignore[arg-type,misc]
+
+    def close(self) -> None:
+        for s in self.sources:
+            close = getattr(s, "close", None)
+            if close is not None:
+                close()
 
     def frames(self) -> Iterator[Frame | StreamGap]:
         its = [iter(s.frames()) for s in self.sources]  # type: ignore[attr-defined]
@@ -133,6 +140,11 @@ class MultiPipeline:
         self.fusion = Fusion(fusion)
         self._views: set[int] = set()
         self._last: FrameResult | None = None
+        self._pending: dict[int, Calibration] = {}  # from the web page, applied by the loop
+        #: each camera's depth image size, known from its first processed frame
+        self.resolutions: list[tuple[int, int] | None] = [None] * len(self.pipelines)
+        #: increases whenever a camera's image size or calibration changes (its screen part)
+        self.views_version = 0
 
     @property
     def learning(self) -> bool:
@@ -143,15 +155,38 @@ class MultiPipeline:
     def calibration(self) -> object:
         return self.pipelines[0].calibration
 
+    @property
+    def calibrations(self) -> list[Calibration]:
+        """Each camera's calibration to the shared screen, in camera order."""
+        return [p.calibration for p in self.pipelines]  # type: ignore[misc]
+
+    def set_camera_calibration(self, cam: int, calibration: Calibration) -> None:
+        """Map camera ``cam`` with this calibration from its next frame on (the web page's
+        calibration flow; any thread). ConfigError for a camera out of range or another
+        screen size than the others'."""
+        if not 0 <= cam < len(self.pipelines):
+            raise ConfigError(f"camera {cam} is out of range; give 0..{len(self.pipelines) - 1}")
+        others = {tuple(c.screen_wh) for k, c in enumerate(self.calibrations) if k != cam}
+        if others and others != {tuple(calibration.screen_wh)}:
+            raise ConfigError(f"camera {cam}'s calibration is for a {calibration.screen_wh} "
+                              f"screen, the others' for {sorted(others)}; use the same screen")
+        self._pending[cam] = calibration
+
     def process(self, frame: Frame) -> FrameResult:
         cam = getattr(frame, "cam", 0)
         if not 0 <= cam < len(self.pipelines):
             raise SourceError(f"frame of camera {cam}, but there are {len(self.pipelines)}")
         pipe = self.pipelines[cam]
+        cal = self._pending.pop(cam, None)
+        if cal is not None:
+            pipe.set_calibration(cal)
+            self._views.discard(cam)
         r = pipe.process(frame)
         if cam not in self._views and r.status != "skipped":
             self.fusion.set_view(cam, view_polygon(pipe.calibration, r.frame.resolution_wh))
             self._views.add(cam)
+            self.resolutions[cam] = r.frame.resolution_wh
+            self.views_version += 1
         t0 = time.perf_counter()
         events = self.fusion.update(cam, r.frame.timestamp_s, r.frame.index, r.events,
                                     emit=getattr(frame, "last_of_instant", True))
@@ -167,6 +202,20 @@ class MultiPipeline:
         if r.status != "skipped":
             self._last = out
         return out
+
+    def end_camera(self, cam: int) -> FrameResult | None:
+        """Camera ``cam`` was lost (a gap in its stream): its pipeline ends its touches (and
+        starts its surface learning over if unfinished); of the fused touches, only those this
+        camera alone saw end (``up`` on the last frame); the others keep their ids."""
+        if not 0 <= cam < len(self.pipelines):
+            raise SourceError(f"gap of camera {cam}, but there are {len(self.pipelines)}")
+        self.pipelines[cam].finish()  # its own ids end; the fusion forgets them below
+        last = self._last
+        if last is None:
+            return None
+        events = self.fusion.drop_camera(cam, last.frame.index)
+        return FrameResult(last.frame, events, last.points, "ended", {}, last.learn_progress,
+                           "", last.surface)
 
     def finish(self) -> FrameResult | None:
         """End every camera's touches and every fused touch (``up`` on the last frame)."""
@@ -244,7 +293,7 @@ def replay_multi(
     recording through its own pipeline, merged by time, fused, into the outputs asked for.
     The recordings must share a clock (their timestamps are compared as they are)."""
     from .outputs import open_outputs
-    from .replay import _check_surface_fits
+    from .replay import check_surface_fits
     from .sources import open_source
 
     cals = open_calibrations(calibration_paths, len(recordings))
@@ -255,7 +304,7 @@ def replay_multi(
     with contextlib.ExitStack() as stack:
         sources = [stack.enter_context(open_source(r)) for r in recordings]
         for s in sources:
-            _check_surface_fits(s, None, surface_frames, cfg)
+            check_surface_fits(s, None, surface_frames, cfg)
         outputs = stack.enter_context(open_outputs(events_path=events_path, tuio=tuio,
                                                    calibration=cals[0], uinput=uinput))
         multi = MultiPipeline([Pipeline(cfg, calibration=c, surface_frames=surface_frames,

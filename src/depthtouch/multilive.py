@@ -7,7 +7,8 @@ keeps each camera's newest frame, and the loop takes them oldest first. Device c
 different cameras are not comparable, so every frame is stamped with the loop's monotonic clock
 when it arrives: that is the time the fusion compares. The loop is
 :func:`~depthtouch.driver.drive` with a :class:`~depthtouch.multicam.MultiPipeline`.
-A camera that is lost and reopened ends every touch (as with one camera).
+A camera that is lost and reopened ends only the touches it alone was seeing; a touch another
+camera sees keeps its id.
 """
 
 from __future__ import annotations
@@ -135,7 +136,7 @@ class LiveMerge:
                 if item is _END:
                     break
                 if isinstance(item, StreamGap):
-                    yield StreamGap(f"camera {cam}: {item.reason}")
+                    yield StreamGap(f"camera {cam}: {item.reason}", cam=cam)
                 elif isinstance(item, Frame):
                     yield CameraFrame.of(item, cam, index=seq, timestamp_s=self.clock() - t0)
                     seq += 1
@@ -160,10 +161,13 @@ def run_live_multi(
     live_config: LiveConfig | None = None,
     max_seconds: float | None = None,
     show_status: bool = True,
+    serve: str | None = None,
     extra_sinks: Sequence[Sink] = (),
 ) -> LiveResult:
     """Run several cameras (or paced recordings) fused onto one screen until Ctrl-C,
-    ``max_seconds`` or the end of every source; returns the counts (see ``run_live``)."""
+    ``max_seconds`` or the end of every source; returns the counts (see ``run_live``).
+    serve: "HOST:PORT" for the web page: the fused touches, each camera's part of the screen
+    and the calibration flow per camera (docs/multicam.md)."""
     from .outputs import open_outputs
     from .pipeline import Pipeline
     from .sources import is_live_spec, open_source
@@ -192,6 +196,13 @@ def run_live_multi(
     timer: threading.Timer | None = None
     with open_outputs(events_path=events_path, tuio=tuio, calibration=cals[0],
                       uinput=uinput) as outputs, contextlib.ExitStack() as stack:
+        sinks = [*outputs.sinks, *extra_sinks]
+        if serve:
+            from .web.serve import WebPage
+
+            page = stack.enter_context(WebPage(serve, multi, source_name=" + ".join(sources),
+                                               camera_names=sources))
+            sinks += page.sinks
         status = stack.enter_context(RichStatusLine()) if show_status else None
         board = StatusBoard(merged, None, status, live_config.status_hz, clock)  # type: ignore[arg-type]
         if max_seconds:
@@ -199,7 +210,7 @@ def run_live_multi(
             timer.daemon = True
             timer.start()
         try:
-            drive(merged, multi, [*outputs.sinks, *extra_sinks], stop=stop, on_result=board,
+            drive(merged, multi, sinks, stop=stop, on_result=board,
                   lenient=True, flush_interval_s=live_config.flush_interval_s, stats=stats)
         except KeyboardInterrupt:
             result.interrupted = True

@@ -102,7 +102,7 @@ def replay(
     summary = RunSummary(source=str(recording))
     with contextlib.ExitStack() as stack:
         source = stack.enter_context(open_source(recording))
-        _check_surface_fits(source, surface, surface_frames, cfg)
+        check_surface_fits(source, surface, surface_frames, cfg)
         outputs = stack.enter_context(open_outputs(events_path=events_path, tuio=tuio,
                                                    calibration_path=calibration_path,
                                                    uinput=uinput))
@@ -136,7 +136,7 @@ def replay(
     return summary
 
 
-def _check_surface_fits(
+def check_surface_fits(
     source: DepthSource, surface: object | None, surface_frames: int | None, cfg: PipelineConfig
 ) -> None:
     if surface is not None:

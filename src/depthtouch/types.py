@@ -169,9 +169,12 @@ class TouchEvent:
 @dataclass(frozen=True)
 class StreamGap:
     """Yielded by a live source between frames when the stream broke (a camera was lost and
-    reopened): touches down before it are ended; ``reason`` says why, for a person."""
+    reopened): touches down before it are ended; ``reason`` says why, for a person. ``cam``:
+    the camera that broke when several feed one loop (only its touches end), None for the only
+    one."""
 
     reason: str
+    cam: int | None = None
 
 
 class HeightView(Protocol):

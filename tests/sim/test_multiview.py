@@ -10,46 +10,24 @@ import pytest
 
 from depthtouch.calibration import Calibration
 from depthtouch.errors import ConfigError
-from depthtouch.evaluation.metrics import Metrics, evaluate, summarize, truth_from_dict
-from depthtouch.fusion import in_screen
-from depthtouch.multicam import MultiPipeline, merge_by_time
-from depthtouch.pipeline import Pipeline
-from depthtouch.sim.multiview import MultiViewRecording, ViewPose, render_views
-from depthtouch.sources.base import ArraySource
+from depthtouch.evaluation.metrics import Metrics
+from depthtouch.evaluation.multiview import score_views
+from depthtouch.fusion import view_polygon
+from depthtouch.sim.multiview import ViewPose, render_views
 from depthtouch.types import TouchEvent
 
 POSES = [ViewPose((-400.0, 0.0, 0.0)), ViewPose((400.0, 0.0, 0.0))]
 
 
-def _pipe(mv: MultiViewRecording, k: int) -> Pipeline:
-    v = mv.views[k]
-    return Pipeline(calibration=Calibration(v.H_to_screen, mv.screen_wh, 0.0), strict=True)
+def _scores(scene: str, poses: list[ViewPose] = POSES
+            ) -> tuple[list[Metrics], Metrics, list[TouchEvent]]:
+    s = score_views(scene, poses, camera="kinect-v1", seed=1)
+    return s.singles, s.fused, s.fused_events
 
 
-def _source(mv: MultiViewRecording, k: int) -> ArraySource:
-    v = mv.views[k]
-    return ArraySource(v.depth, mv.timestamps_s, 0.001, v.K)
-
-
-def _run(pipe: object, source: object) -> list[TouchEvent]:
-    events: list[TouchEvent] = []
-    for frame in source.frames():  # type: ignore[attr-defined]
-        events += pipe.process(frame).events  # type: ignore[attr-defined]
-    end = pipe.finish()  # type: ignore[attr-defined]
-    return events + (end.events if end is not None else [])
-
-
-def _scores(scene: str) -> tuple[list[Metrics], Metrics, list[TouchEvent]]:
-    mv = render_views(scene, POSES, camera="kinect-v1", seed=1)
-    truth = truth_from_dict(mv.reference.truth)
-
-    def score(events: list[TouchEvent]) -> Metrics:
-        return summarize([evaluate(truth, in_screen(events))])
-
-    singles = [score(_run(_pipe(mv, k), _source(mv, k))) for k in range(2)]
-    fused_events = _run(MultiPipeline([_pipe(mv, 0), _pipe(mv, 1)]),
-                        merge_by_time([_source(mv, 0), _source(mv, 1)]))
-    return singles, score(fused_events), fused_events
+def _one_per_frame(events: list[TouchEvent]) -> bool:
+    keys = [(e.frame, e.id) for e in events]
+    return len(keys) == len(set(keys))
 
 
 def test_a_drag_across_the_seam_one_id_no_duplicates_no_worse_than_the_better_camera():
@@ -70,6 +48,42 @@ def test_two_hands_one_in_each_view():
     assert fused.contact_recall == 1.0 and fused.false_touches == 0
     assert fused.id_switches == 0
     assert {e.extra["cam"] for e in events} == {0, 1}
+
+
+def test_an_arm_hiding_the_overlap_from_one_camera_the_touch_goes_on_with_the_other():
+    """``occlude``: the other arm, held high, hides the finger in the overlap from the left
+    camera (not from the right one) while it drags, then during a tap."""
+    singles, fused, events = _scores("occlude")
+    left, right = singles
+    assert left.frame_recall < 0.5 and left.contact_recall < 1.0  # the left camera is blind
+    assert right.contact_recall == 1.0
+    assert fused.contact_recall == 1.0 and fused.frame_recall >= right.frame_recall
+    assert fused.id_switches == 0 and fused.false_touches == 0 and _one_per_frame(events)
+    assert fused.error_median_mm <= right.error_median_mm
+    downs = [e.id for e in events if e.state == "down"]
+    assert len(downs) == 2  # the drag (seen by both, then by the right camera alone) and the tap
+    assert {e.extra["cam"] for e in events if e.id == downs[0]} == {0, 1}
+
+
+@pytest.mark.parametrize("poses", [
+    # one camera turned 90 deg about its optical axis, the other upside down
+    [ViewPose((-400.0, 0.0, 0.0), (0.0, 0.0, 90.0)), ViewPose((400.0, 0.0, 0.0), (0.0, 0.0, 180.0))],
+    # upside down, and the other yawed 12 deg toward the middle (a projective map)
+    [ViewPose((-400.0, 0.0, 0.0), (0.0, 0.0, 180.0)), ViewPose((400.0, 0.0, 0.0), (0.0, 12.0, 0.0))],
+], ids=["rot90-rot180", "rot180-yaw12"])
+def test_rotated_cameras_a_drag_across_the_seam_keeps_its_id(poses):
+    mv = render_views("taps", poses, camera="kinect-v1", seed=1, noise=False)
+    for v in mv.views:  # the calibrations are far from a translation
+        corners = view_polygon(Calibration(v.H_to_screen, mv.screen_wh, 0.0), (640, 480))
+        assert np.abs(corners[1] - corners[0] - [639.0, 0.0]).max() > 50.0
+    singles, fused, events = _scores("drags", poses)
+    assert fused.id_switches == 0 and fused.false_touches == 0 and _one_per_frame(events)
+    cams = collections.defaultdict(set)
+    for e in events:
+        cams[e.id].add(e.extra["cam"])
+    assert {0, 1} in cams.values()  # a drag crossed the seam under one id
+    assert fused.contact_recall >= max(s.contact_recall for s in singles)
+    assert fused.frame_recall >= max(s.frame_recall for s in singles)
 
 
 def test_views_calibrate_exactly_and_refuse_moving_scenes():

@@ -14,7 +14,7 @@ from depthtouch.sim.artefacts import fatten_edges, match_window, multipath, spec
 from depthtouch.sim.cameras import NoiseModel, get_profile
 from depthtouch.sim.geometry import Capsule, Rays, make_surface
 from depthtouch.sim.hardscenes import LABEL_REST_HAND, free_yaw
-from depthtouch.sim.render import _assemble
+from depthtouch.sim.render import assemble_scene
 from depthtouch.sim.scenes import LABEL_OBJECT, SceneContext, build_script
 
 FPS = 10.0
@@ -144,7 +144,7 @@ def test_only_tips_props_and_resting_hands_reach_the_surface(scene: str, seed: i
     lowest_tip = lowest_other = lowest_rest = np.inf
     for t in np.arange(0.0, script.duration_s, 1.0 / FPS):
         s = surf.moved(script.drift(t) if script.drift else 0.0)
-        prims, tips = _assemble(script, s, float(t))
+        prims, tips = assemble_scene(script, s, float(t))
         tip_labels = {tip.label for _, _, tip in tips}
         for p in prims:
             if not isinstance(p, Capsule):

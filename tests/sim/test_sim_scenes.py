@@ -11,7 +11,7 @@ import pytest
 from depthtouch.sim import SCENES, render_scene
 from depthtouch.sim.cameras import get_profile
 from depthtouch.sim.geometry import Capsule, Rays, make_surface
-from depthtouch.sim.render import _assemble
+from depthtouch.sim.render import assemble_scene
 from depthtouch.sim.scenes import LABEL_REST_ARM, SceneContext, build_script
 
 FPS = 10.0
@@ -154,7 +154,7 @@ def test_only_tips_come_near_the_surface(scene: str, seed: int) -> None:
     lowest_tip, lowest_other = np.inf, np.inf
     for t in np.arange(0.0, script.duration_s, 1.0 / FPS):
         s = surf.moved(script.drift(t) if script.drift else 0.0)
-        prims, tips = _assemble(script, s, float(t))
+        prims, tips = assemble_scene(script, s, float(t))
         tip_labels = {tip.label for _, _, tip in tips}
         for p in prims:
             if not isinstance(p, Capsule):

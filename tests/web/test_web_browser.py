@@ -335,3 +335,97 @@ def test_calibration_flow_completes(page: Any, server: WebServer) -> None:
         assert pad_pixel(page, sx, 300) != PAD_BG, sx
     assert pad_pixel(page, 350, 200) == PAD_BG
     assert math.isfinite(err)
+
+
+# --- several cameras ------------------------------------------------------------------------------
+def camera_cal(offset_px: float) -> Any:
+    """Camera pixels -> the shared 960 x 540 screen: x + offset, then 6 x 4.5 (pad pixels)."""
+    from depthtouch.calibration import Calibration
+
+    H = np.diag([6.0, 4.5, 1.0]) @ np.array([[1.0, 0, offset_px], [0, 1.0, 0], [0, 0, 1.0]])
+    return Calibration(H, (960, 540), 0.0)
+
+
+def overlay_pixel(page: Any, x: int, y: int) -> list[int]:
+    return page.evaluate(
+        "([x, y]) => Array.from(document.getElementById('pad-overlay').getContext('2d')"
+        ".getImageData(x, y, 1, 1).data)",
+        [x, y],
+    )
+
+
+def test_two_cameras_parts_overlap_and_calibration_per_camera(
+    browser: Any, tmp_path: Path
+) -> None:
+    """A fused replay of two cameras (one recording cut into columns [0, 100) and [60, 160)):
+    the page draws each camera's part and their overlap on the pad, the finger crossing the
+    seam is one touch, and camera 1 is calibrated alone with its targets in its own part."""
+    from depthtouch.multicam import CameraFrame, MultiPipeline, merge_by_time
+    from depthtouch.sources.base import ArraySource
+    from depthtouch.web.serve import WebPage
+
+    rec = open_source(finger_recording(tmp_path / "finger.npz"))
+    depth = np.stack([f.depth for f in rec.frames()])  # type: ignore[union-attr]
+    ts = np.asarray(rec.timestamps, np.float64)  # type: ignore[attr-defined]
+    K, k_right = rec.K, rec.K.copy()  # type: ignore[attr-defined]
+    k_right[0, 2] -= 60
+    rec.close()
+    views = [ArraySource(np.ascontiguousarray(depth[:, :, :100]), ts, 0.001, K),
+             ArraySource(np.ascontiguousarray(depth[:, :, 60:]), ts, 0.001, k_right)]
+    cals = [camera_cal(0.0), camera_cal(60.0)]
+    multi = MultiPipeline([Pipeline(calibration=c, surface_frames=12) for c in cals])
+    pg = browser.new_page(viewport={"width": 1500, "height": 800}, bypass_csp=True)
+    errors: list[str] = []
+    pg.on("pageerror", lambda e: errors.append(str(e)))
+    with WebPage(("127.0.0.1", 0), multi, camera_names=["left.npz", "right.npz"],
+                 calibration_out=tmp_path / "calibration.json", queue_size=256) as web:
+        pg.goto(web.url)
+        pg.wait_for_function("window.depthtouch.cameras !== null", timeout=10_000)
+        merged = merge_by_time(views)
+        runner = SourceLoop(lambda: merged, multi, web, realtime=True, loop=False,
+                            reuse_source=True).start()
+        assert runner.join(30.0)
+        pg.wait_for_function("window.depthtouch.cameras.overlaps.length === 1", timeout=10_000)
+        assert pg.text_content("#cams") == "2 cameras, 2 parts shown, 1 overlap"
+        # one finger crossing the seam: one fused touch
+        assert pg.evaluate("[...window.depthtouch.seen]") == [1]
+        parts = pg.evaluate("window.depthtouch.cameras.cameras.map(c => c.footprint)")
+        assert parts[0][1][0] == pytest.approx(594.0) and parts[1][0][0] == pytest.approx(360.0)
+        # drawn on the pad: each part tinted, the overlap (x in [360, 594]) more
+        left, both, right = (overlay_pixel(pg, x, 300) for x in (150, 480, 800))
+        assert left[3] > 0 and right[3] > 0 and both[3] > max(left[3], right[3])
+        assert overlay_pixel(pg, 957, 300)[3] == 0  # outside both parts
+        pg.screenshot(path=str(tmp_path / "cameras.png"))
+        # calibrate camera 1 alone: its targets lie in its own part (x > 594 on the pad)
+        assert not pg.is_hidden("#cal-cam")
+        pg.select_option("#cal-cam", "1")
+        pg.click("#calibrate")
+        assert "camera 1: touch target 1 of 4" in pg.text_content("#cal-status")
+        targets = pg.evaluate("window.depthtouch.calib.targets")
+        assert all(594.0 < x < 954.0 for x, _ in targets)
+        feed = Feed(web.server)
+        feed.i = 1000  # after the replay's frames
+        truth = camera_cal(50.0)  # camera 1 has moved by 10 px: its new map
+        for k, (sx, sy) in enumerate(targets):
+            x, y = (sx / 6.0 - 50.0, sy / 4.5)
+            feed.frame([(90 + k, "down", 30.0, 30.0)], cam=0)  # camera 0's touch: not paired
+            for n in range(5):  # camera 1's touch on the target, held still
+                feed.frame([(100 + k, "down" if n == 0 else "move", x, y)], cam=1)
+            feed.frame([(100 + k, "up", x, y)], cam=1)
+            feed.frame([(90 + k, "up", 30.0, 30.0)], cam=0)
+        pg.wait_for_function("document.getElementById('cal-status').dataset.done !== undefined",
+                             timeout=10_000)
+        status = pg.text_content("#cal-status")
+        assert pg.get_attribute("#cal-status", "data-done") == "ok", status
+        assert status.startswith("camera 1 calibrated") and "calibration.cam1.json" in status
+    pg.close()
+    assert errors == []
+    saved = load_calibration(tmp_path / "calibration.cam1.json")
+    probe = np.array([[10.0, 20.0], [90.0, 100.0]])
+    np.testing.assert_allclose(saved.to_screen(probe), truth.to_screen(probe), atol=0.05)
+    assert not (tmp_path / "calibration.json").exists()
+    # the loop maps camera 1 with it from its next frame on; camera 0 keeps its own
+    multi.process(CameraFrame.of(next(iter(views[1].frames())), 1))  # type: ignore[arg-type]
+    np.testing.assert_allclose(multi.calibrations[1].to_screen(probe), truth.to_screen(probe),
+                               atol=0.05)
+    assert multi.calibrations[0] is cals[0]

@@ -15,10 +15,10 @@ from .cameras import CAMERAS, HARD_CAMERAS, PROFILES, CameraProfile, get_profile
 from .geometry import SURFACES
 from .hardscenes import HARD_SCENES
 from .render import SimRecording, finger_label, load_truth, render_scene, write_recording
-from .scenes import GESTURE_SCENES, SCENES
+from .scenes import GESTURE_SCENES, MULTIVIEW_SCENES, SCENES
 
 #: Every scene name the simulator renders (the default suite's "all" is :data:`SCENES` alone).
-ALL_SCENES: tuple[str, ...] = SCENES + GESTURE_SCENES + HARD_SCENES
+ALL_SCENES: tuple[str, ...] = SCENES + GESTURE_SCENES + MULTIVIEW_SCENES + HARD_SCENES
 
 __all__ = [
     "ALL_SCENES",
@@ -26,6 +26,7 @@ __all__ = [
     "CAMERAS",
     "HARD_CAMERAS",
     "HARD_SCENES",
+    "MULTIVIEW_SCENES",
     "PROFILES",
     "SCENES",
     "SURFACES",

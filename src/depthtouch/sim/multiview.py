@@ -33,7 +33,7 @@ from .geometry import (
     render_primitives,
     rotation_xyz,
 )
-from .render import SimRecording, _assemble, _validate_args, render_scene
+from .render import SimRecording, assemble_scene, check_render_args, render_scene, write_truth
 from .scenes import SceneContext, build_script
 
 
@@ -112,7 +112,7 @@ def render_views(
     bump or drift, or no pose."""
     if not poses:
         raise ConfigError("render_views needs at least one pose")
-    _validate_args(fps, seed)
+    check_render_args(fps, seed)
     reference = render_scene(scene, camera=camera, distance_m=distance_m, seed=seed, fps=fps,
                              noise=False)
     profile = get_profile(camera)
@@ -136,7 +136,7 @@ def render_views(
             model.set_static(static)
         depth = np.empty((n, h, w), np.uint16)
         for i in range(n):
-            prims, _ = _assemble(script, world, i / fps)
+            prims, _ = assemble_scene(script, world, i / fps)
             zbuf = static.copy()
             labels = np.zeros((h, w), np.uint8)
             box = render_primitives(rays, [_posed(p, R, c) for p in prims], zbuf, labels)
@@ -164,7 +164,6 @@ def write_views(mv: MultiViewRecording, folder: str | Path,
     written paths."""
     from ..calibration import Calibration, save_calibration
     from ..sources import write_npz
-    from .render import _write_json_atomic
 
     out = Path(folder)
     if out.exists() and (not out.is_dir() or any(out.iterdir())):
@@ -176,6 +175,6 @@ def write_views(mv: MultiViewRecording, folder: str | Path,
         written.append(save_calibration(Calibration(v.H_to_screen, mv.screen_wh, 0.0),
                                         out / f"view{k}.calibration.json"))
     truth = Path(truth_path) if truth_path is not None else out / "truth.json"
-    _write_json_atomic(truth, mv.reference.truth)
+    write_truth(truth, mv.reference.truth)
     written.append(truth)
     return written

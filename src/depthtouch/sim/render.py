@@ -82,7 +82,8 @@ class _TruthBuilder:
                             "hovers": hovers})
 
 
-def _validate_args(fps: float, seed: int) -> None:
+def check_render_args(fps: float, seed: int) -> None:
+    """ConfigError unless fps is in [1, 120] Hz and seed an integer >= 0 (every renderer)."""
     if not (isinstance(fps, (int, float)) and 1.0 <= fps <= 120.0):
         raise ConfigError(f"fps {fps!r} is out of range; allowed [1, 120]")
     if not isinstance(seed, (int, np.integer)) or seed < 0:
@@ -113,7 +114,7 @@ def render_scene(
     """
     profile = get_profile(camera)
     world_surface = make_surface(surface, distance_m, tilt_deg)
-    _validate_args(fps, seed)
+    check_render_args(fps, seed)
     rays = Rays(profile.K, profile.resolution_wh)
     # independent streams for the script and the noise (SeedSequence works on numpy < 1.25)
     scene_rng, noise_rng = (np.random.default_rng(s)
@@ -142,7 +143,7 @@ def render_scene(
                 model.set_static(cache[1])
         zbuf = cache[1].copy()
         labels = np.zeros((h, w), np.uint8)
-        prims, items_3d = _assemble(script, surf_w, t)
+        prims, items_3d = assemble_scene(script, surf_w, t)
         if bumped:
             prims = [p.rotated(R) for p in prims]
         box = render_primitives(rays, prims, zbuf, labels)
@@ -164,8 +165,10 @@ def render_scene(
                         labels_out)
 
 
-def _assemble(script: Script, surf: Surface, t: float
-              ) -> tuple[list[Primitive], list[tuple[int, str, Any]]]:
+def assemble_scene(script: Script, surf: Surface, t: float
+                   ) -> tuple[list[Primitive], list[tuple[int, str, Any]]]:
+    """The scene at time ``t`` s on surface ``surf``: its primitives (hands and props) and its
+    fingertips as (hand index, finger, Tip). Pure; every renderer poses these for its camera."""
     prims: list[Primitive] = []
     tips: list[tuple[int, str, Any]] = []
     for k, hand in enumerate(script.hands):
@@ -244,7 +247,8 @@ def _truth_doc(scene: str, seed: int, camera: str, rays: Rays, fps: float, surf:
 
 
 # --- files ----------------------------------------------------------------------------------------
-def _write_json_atomic(path: Path, doc: dict[str, Any]) -> None:
+def write_truth(path: str | Path, doc: dict[str, Any]) -> None:
+    """Write a truth document as compact JSON, atomically (SourceError naming the fix)."""
     write_text_atomic(path, json.dumps(doc, separators=(",", ":")), what="the truth",
                       error=SourceError)
 
@@ -278,7 +282,7 @@ def write_recording(rec: SimRecording, out: str | Path, truth_path: str | Path) 
         write_npz(out_p, rec.depth, rec.timestamps_s, rec.depth_scale_m, rec.K)
     else:
         write_png_folder(out_p, rec.depth, rec.timestamps_s, rec.depth_scale_m, rec.K, rec.fps)
-    _write_json_atomic(truth_p, rec.truth)  # last: a truth file means the pair is complete
+    write_truth(truth_p, rec.truth)  # last: a truth file means the pair is complete
 
 
 def _need(cond: bool, where: str, what: str) -> None:

@@ -15,7 +15,7 @@ from collections.abc import Callable
 import numpy as np
 
 from ..errors import ConfigError
-from .geometry import Box, Capsule, Primitive
+from .geometry import Box, Capsule, Primitive, Sphere
 from .hand import HandShape, lateral_forward_st
 from .script import (  # noqa: F401  (re-exported: the scenes' vocabulary)
     EMPTY_S,
@@ -362,6 +362,55 @@ def scene_presses(ctx: SceneContext) -> Script:
     return Script(tr.end_s + 0.3, hands=[HandTrack(ctx.hand(), ("index",), tr)])
 
 
+def _occluding_arm(ctx: SceneContext, st: np.ndarray, t_in: float, t_out: float) -> Prop:
+    """The other arm held still high over the surface beside ``st`` (see :func:`scene_occlude`),
+    sliding in from the left over 0.5 s at ``t_in`` and out from ``t_out``."""
+    rng = ctx.rng
+    s = ctx.surface
+    dist_mm = float(s.origin_mm[2])
+    height = 0.4 * dist_mm
+    radius = float(rng.uniform(36.0, 44.0))
+    hand_st = st + np.array([-0.16 * dist_mm, -float(rng.uniform(100.0, 140.0))])
+    elbow_st = hand_st + np.array([-150.0, 650.0])  # toward the body, lower left
+
+    def build(t: float) -> list[Primitive]:
+        if not (t_in <= t <= t_out + 0.5):
+            return []
+        slide = np.array([-700.0, 0.0]) * max(0.0, 1.0 - (t - t_in) / 0.5, (t - t_out) / 0.5)
+        pa, pb = s.point(np.stack([hand_st + slide, elbow_st + slide]))
+        na, nb = s.normal(np.stack([hand_st + slide, elbow_st + slide]))
+        hand = pa + height * na
+        return [Capsule(hand, pb + (height + 150.0) * nb, radius, LABEL_REST_ARM),
+                Sphere(hand, radius + 12.0, LABEL_REST_ARM)]
+
+    return Prop(build)
+
+
+def scene_occlude(ctx: SceneContext) -> Script:
+    """A finger touches the middle of the frame and drags while the other arm is held over the
+    surface, 0.4 x the camera distance up and 0.16 x to the left of the finger: from a camera
+    0.4 x the distance to the left (the left view of two 0.8 m apart at 1 m) it hides the finger,
+    not from the camera in the middle or one to the right. A tap follows while it is hidden."""
+    rng = ctx.rng
+    centre = ctx.st_at(0.5, 0.5)
+    centre = ctx.spot(0.45, 0.55) if centre is None else centre
+    start = centre + np.array([-30.0, 0.0])
+    tr = ctx.enter(start, ctx.base_yaw + float(rng.uniform(-15.0, 15.0)),
+                   float(rng.uniform(35.0, 60.0)), EMPTY_S)
+    tr.to(0.15, gap=0.0).hold(0.4)  # down before the arm comes: both cameras see it
+    t_in = tr.end_s
+    tr.hold(0.8)  # the arm slides in, the finger stays
+    tr.to(1.0, s=float(centre[0] + 30.0), t=float(centre[1] + 15.0)).hold(0.3)
+    tr.to(0.15, gap=UP_MM)
+    _tap(tr, rng, centre + np.array([0.0, 25.0]))  # a tap the left camera cannot see
+    t_out = tr.end_s + 0.2
+    tr.hold(1.0)
+    ctx.leave(tr)
+    events = [("occluder_in", t_in + 0.5), ("occluder_out", t_out)]
+    return Script(tr.end_s + 0.3, hands=[HandTrack(ctx.hand(), ("index",), tr)],
+                  props=[_occluding_arm(ctx, centre, t_in, t_out)], events=events)
+
+
 SCENE_BUILDERS: dict[str, Callable[[SceneContext], Script]] = {
     "taps": scene_taps,
     "drags": scene_drags,
@@ -375,12 +424,16 @@ SCENE_BUILDERS: dict[str, Callable[[SceneContext], Script]] = {
     "bump": scene_bump,
     "hold": scene_hold,
     "presses": scene_presses,
+    "occlude": scene_occlude,
 }
 
 #: Scenes measured apart (``depthtouch eval --gestures``): not in ``scenes = "all"`` of a suite,
 #: so that the default suite, and the numbers measured on it, stay as they are.
 GESTURE_SCENES: tuple[str, ...] = ("presses",)
-SCENES: tuple[str, ...] = tuple(n for n in SCENE_BUILDERS if n not in GESTURE_SCENES)
+#: Scenes made for several cameras (``depthtouch sim --views``), measured apart likewise.
+MULTIVIEW_SCENES: tuple[str, ...] = ("occlude",)
+SCENES: tuple[str, ...] = tuple(n for n in SCENE_BUILDERS
+                                if n not in GESTURE_SCENES + MULTIVIEW_SCENES)
 
 
 def build_script(scene: str, ctx: SceneContext) -> Script:
@@ -389,6 +442,6 @@ def build_script(scene: str, ctx: SceneContext) -> Script:
 
     builder = SCENE_BUILDERS.get(scene) or HARD_SCENE_BUILDERS.get(scene)
     if builder is None:
-        names = ", ".join(SCENES + GESTURE_SCENES + HARD_SCENES)
+        names = ", ".join(SCENES + GESTURE_SCENES + MULTIVIEW_SCENES + HARD_SCENES)
         raise ConfigError(f"unknown scene {scene!r}; use one of {names}")
     return builder(ctx)

@@ -17,13 +17,14 @@ import threading
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, Protocol, runtime_checkable
 
 from ..driver import DriveStats, Pacer, drive
 from ..errors import DepthTouchError, OutputError
 from ..outputs.base import Sink
 from ..sources.base import DepthSource
 from ..types import FrameResult
+from .cameras import CameraView
 from .server import WebServer
 
 
@@ -40,6 +41,43 @@ class _Heights:
         """Nothing to release: the page's owner stops the server."""
 
 
+@runtime_checkable
+class CameraSet(Protocol):
+    """What the page needs of several cameras (:class:`depthtouch.multicam.MultiPipeline`)."""
+
+    resolutions: list[tuple[int, int] | None]
+    views_version: int
+
+    @property
+    def calibrations(self) -> list[Any]: ...
+
+    def set_camera_calibration(self, cam: int, calibration: Any) -> None: ...
+
+
+class _CameraViews:
+    """A sink: tells the page each camera's part of the screen whenever one changes (a
+    camera's first frame, a new calibration)."""
+
+    def __init__(self, server: WebServer, cameras: CameraSet, names: Sequence[str]) -> None:
+        self.server, self.cameras, self.names = server, cameras, list(names)
+        self._version: int | None = None
+
+    def send(self, result: FrameResult) -> None:
+        if self.cameras.views_version != self._version:
+            self.publish()
+
+    def publish(self) -> None:
+        c = self.cameras
+        self._version = c.views_version
+        cals = c.calibrations
+        views = [CameraView(k, self.names[k] if k < len(self.names) else f"camera {k}",
+                            c.resolutions[k], cals[k]) for k in range(len(cals))]
+        self.server.set_cameras(views, tuple(cals[0].screen_wh))
+
+    def close(self) -> None:
+        """Nothing to release."""
+
+
 def page_sinks(server: WebServer) -> list[Sink]:
     """The sinks that feed a server's page: the WebSocket stream and the height maps."""
     return [server.sink, _Heights(server)]
@@ -51,11 +89,14 @@ class WebPage:
     address: "HOST:PORT" (see :func:`depthtouch.checks.parse_address`; port 0 = any free one)
         or (host, port).
     pipeline: gets the page's calibration (``set_calibration``); its own calibration is shown.
+        Several cameras (a :class:`CameraSet`, e.g. a MultiPipeline): the page shows each
+        camera's part of the screen and calibrates one camera at a time
+        (``set_camera_calibration``), named by ``camera_names`` (default "camera K").
     server_options: more keywords for :class:`WebServer` (calibration_out, allowed_origins...).
     """
 
     def __init__(self, address: str | tuple[str, int], pipeline: Any, *, source_name: str = "",
-                 **server_options: Any) -> None:
+                 camera_names: Sequence[str] = (), **server_options: Any) -> None:
         from ..checks import parse_address
 
         host, port = address if isinstance(address, tuple) else parse_address(
@@ -63,8 +104,14 @@ class WebPage:
             allow_port_zero=True)
         self.server = WebServer(host, port, calibration=pipeline.calibration,
                                 source_name=source_name, **server_options)
-        self.server.on_calibration = pipeline.set_calibration
         self.sinks = page_sinks(self.server)
+        if isinstance(pipeline, CameraSet):
+            self.server.on_camera_calibration = pipeline.set_camera_calibration
+            views = _CameraViews(self.server, pipeline, camera_names)
+            views.publish()  # before the first frame: no parts yet, targets on the whole screen
+            self.sinks.append(views)
+        else:
+            self.server.on_calibration = pipeline.set_calibration
 
     @property
     def url(self) -> str:

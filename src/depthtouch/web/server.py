@@ -25,7 +25,9 @@ WebSocket messages (docs/websocket.md; schemas in ``protocol.schema.json`` here)
 client: text JSON ``hello`` (on connect, with the protocol ``version``), ``frame`` (every
 processed frame, see :mod:`depthtouch.outputs.websocket`), ``gesture`` (tap, double tap, long
 press, drag, pinch, rotate), ``meta`` (resolution changed), ``calibration`` (a calibration was
-loaded or fitted), ``reset`` (a looped recording restarted), ``info`` (a line for the page);
+loaded or fitted), ``cameras`` (several cameras: each one's part of the screen, the overlaps and
+its calibration targets; on connect and when one changes), ``reset`` (a looped recording
+restarted), ``info`` (a line for the page);
 binary: a JPEG of the colour height map, only to clients that asked for it. Client to server:
 ``{"type": "subscribe", "height": true | false}``; anything else is ignored.
 """
@@ -45,7 +47,7 @@ from urllib.parse import urlsplit
 import numpy as np
 from aiohttp import WSMsgType, web
 
-from ..errors import CalibrationError, DepthTouchError, OutputError
+from ..errors import DepthTouchError, OutputError
 from ..outputs.websocket import (
     BINARY,
     PROTOCOL_VERSION,
@@ -55,6 +57,13 @@ from ..outputs.websocket import (
     encode_message,
 )
 from ..types import Frame, FrameResult, TouchEvent
+from .calibrate import (
+    camera_calibration_path,
+    fit_and_save,
+    parse_calibration_request,
+    parse_camera,
+)
+from .cameras import CameraView, cameras_message
 from .heightview import colorize_height, encode_jpeg
 
 __all__ = ["WebServer", "colorize_height", "encode_jpeg", "fit_and_save",
@@ -70,7 +79,6 @@ _CONTENT_TYPES = {
     ".png": "image/png",
     ".svg": "image/svg+xml",
 }
-_MAX_PAIRS = 64
 
 
 def _load_static(folder: Path) -> dict[str, tuple[bytes, str]]:
@@ -148,6 +156,9 @@ class WebServer:
         self.calibration: Any | None = None
         self.calibration_error_px: float | None = None
         self.on_calibration: Callable[[Any], None] | None = None
+        #: several cameras: camera k's calibration fitted on the page goes here (k, calibration)
+        self.on_camera_calibration: Callable[[int, Any], None] | None = None
+        self._cameras: dict[str, Any] | None = None  # the last ``cameras`` message
         if calibration is not None:
             self.set_calibration(calibration)
         self._last_height_t: float | None = None
@@ -263,6 +274,17 @@ class WebServer:
             error_px = float(err) if err is not None else None
         self.calibration_error_px = error_px
         self.notify({"type": "calibration", **self._calibration_info()})
+
+    def set_cameras(self, views: list[CameraView], screen_wh: tuple[int, int]) -> None:
+        """Several cameras: each one's name, image size and calibration to the shared screen
+        ``screen_wh``; the pages get their parts, overlaps and targets (a ``cameras`` message,
+        also sent on connect)."""
+        self._cameras = cameras_message(views, screen_wh)
+        self.notify(self._cameras)
+
+    @property
+    def n_cameras(self) -> int:
+        return len(self._cameras["cameras"]) if self._cameras is not None else 1
 
     def notify(self, message: dict[str, Any]) -> None:
         """Send a control message (JSON object with a ``type``) to every page."""
@@ -390,6 +412,8 @@ class WebServer:
         self.broadcaster.add(ws, abort=transport.abort if transport is not None else None,
                              height=height)
         self.broadcaster.send_to(ws, TEXT, encode_message({**self._hello(), "height": height}))
+        if self._cameras is not None:
+            self.broadcaster.send_to(ws, TEXT, encode_message(self._cameras))
         try:
             async for msg in ws:
                 if msg.type == WSMsgType.ERROR:
@@ -418,12 +442,16 @@ class WebServer:
                 {"ok": False, "error": "send the calibration pairs as application/json"},
                 status=415,
             )
+        out = self.calibration_out
         try:
             payload = await request.json()
             depth_xy, screen_xy, screen_wh = parse_calibration_request(payload)
+            shared = self._cameras["screen_wh"] if self._cameras is not None else None
+            cam = parse_camera(payload, self.n_cameras, screen_wh, shared)
+            out = camera_calibration_path(self.calibration_out, cam)
             loop = asyncio.get_running_loop()
             cal = await loop.run_in_executor(
-                None, fit_and_save, depth_xy, screen_xy, screen_wh, self.calibration_out
+                None, fit_and_save, depth_xy, screen_xy, screen_wh, out
             )
         except (json.JSONDecodeError, UnicodeDecodeError):
             return web.json_response({"ok": False, "error": "the body is not JSON"}, status=400)
@@ -431,59 +459,13 @@ class WebServer:
             return web.json_response({"ok": False, "error": str(e)}, status=400)
         except OSError as e:
             return web.json_response(
-                {"ok": False, "error": f"cannot save {self.calibration_out}: {e.strerror or e}; "
+                {"ok": False, "error": f"cannot save {out}: {e.strerror or e}; "
                  "check --calibration-out"},
                 status=500,
             )
         err = float(cal.reprojection_error_px)
-        self.set_calibration(cal, err)
-        return web.json_response(
-            {"ok": True, "error_px": err, "path": str(self.calibration_out)}
-        )
-
-
-def parse_calibration_request(
-    payload: Any,
-) -> tuple[np.ndarray, np.ndarray, tuple[int, int]]:
-    """Validate ``{"screen_wh": [w, h], "pairs": [{"depth": [x, y], "screen": [x, y]}, ...]}``.
-
-    Returns depth_xy (N, 2), screen_xy (N, 2) float64 and screen_wh; CalibrationError naming the
-    problem otherwise (at least 4 pairs, finite numbers).
-    """
-    if not isinstance(payload, dict):
-        raise CalibrationError("calibration request must be a JSON object with pairs, screen_wh")
-    wh = payload.get("screen_wh")
-    if (
-        not isinstance(wh, list) or len(wh) != 2
-        or not all(isinstance(v, (int, float)) and not isinstance(v, bool) and v > 0 for v in wh)
-    ):
-        raise CalibrationError(f"screen_wh = {wh!r} must be [width, height] in positive pixels")
-    pairs = payload.get("pairs")
-    if not isinstance(pairs, list) or not 4 <= len(pairs) <= _MAX_PAIRS:
-        n = len(pairs) if isinstance(pairs, list) else pairs
-        raise CalibrationError(
-            f"calibration needs 4..{_MAX_PAIRS} pairs, got {n!r}; touch all the targets"
-        )
-    try:
-        depth_xy = np.array([p["depth"] for p in pairs], dtype=np.float64)
-        screen_xy = np.array([p["screen"] for p in pairs], dtype=np.float64)
-    except (TypeError, KeyError, ValueError):
-        raise CalibrationError(
-            'each calibration pair must be {"depth": [x, y], "screen": [x, y]} numbers'
-        ) from None
-    if depth_xy.shape != (len(pairs), 2) or screen_xy.shape != (len(pairs), 2):
-        raise CalibrationError('each calibration pair must be {"depth": [x, y], "screen": [x, y]}')
-    if not (np.all(np.isfinite(depth_xy)) and np.all(np.isfinite(screen_xy))):
-        raise CalibrationError("calibration pairs contain NaN or infinity; touch the targets again")
-    return depth_xy, screen_xy, (int(round(wh[0])), int(round(wh[1])))
-
-
-def fit_and_save(
-    depth_xy: np.ndarray, screen_xy: np.ndarray, screen_wh: tuple[int, int], path: Path
-) -> Any:
-    """Fit a calibration from touched targets and save it; returns the Calibration."""
-    from ..calibration import fit_calibration, save_calibration
-
-    cal = fit_calibration(depth_xy, screen_xy, screen_wh)
-    save_calibration(cal, path)
-    return cal
+        if cam is None:
+            self.set_calibration(cal, err)
+        elif self.on_camera_calibration is not None:
+            self.on_camera_calibration(cam, cal)  # the cameras message follows from the loop
+        return web.json_response({"ok": True, "error_px": err, "path": str(out), "cam": cam})

@@ -1,5 +1,6 @@
 // depthtouch page: live height view with touches and trails, drawing pad, pinch zoom and the
-// 4-target calibration flow. Plain JavaScript, no build step; all state lives in `state`
+// 4-target calibration flow; with several cameras, each camera's part of the screen and the
+// overlaps on the pad, and the calibration flow per camera. Plain JavaScript, no build step; all state lives in `state`
 // (exposed as window.depthtouch for debugging and tests).
 "use strict";
 
@@ -29,7 +30,8 @@
     seen: new Set(),
     pinch: null,               // {key, d0, z0}
     zoom: 1,
-    calib: null,               // {i, pairs, cur: {id, pts} | null}
+    calib: null,               // {i, pairs, cur: {id, pts} | null, cam, targets, screenWH}
+    cameras: null,             // the last "cameras" message (several cameras), or null
     frames: 0,                 // frame messages received
     lastFrame: -1,             // index of the latest frame
     t: 0,
@@ -43,6 +45,10 @@
     const [W, H] = state.res || state.padWH;
     const s = Math.min(pad.width / W, pad.height / H);
     return [(pad.width - W * s) / 2 + x * s, (pad.height - H * s) / 2 + y * s];
+  }
+
+  function screenToPad(x, y, screenWH) {
+    return [(x * pad.width) / screenWH[0], (y * pad.height) / screenWH[1]];
   }
 
   function toPad(t) {
@@ -226,25 +232,38 @@
 
   // --- calibration flow ---------------------------------------------------------------------
   function startCalibration() {
-    if (!state.targets) {
+    const cams = state.cameras;
+    if (!state.targets && !cams) {
       $("cal-status").textContent = "calibration is not available on this server";
       return;
     }
     delete $("cal-status").dataset.done;
-    state.calib = { i: 0, pairs: [], cur: null };
+    if (cams) {
+      // one camera at a time: its targets (screen px) lie in its part of the shared screen
+      const cam = Number($("cal-cam").value || 0);
+      const info = cams.cameras[cam];
+      state.calib = { i: 0, pairs: [], cur: null, cam, targets: info.targets,
+                      screenWH: cams.screen_wh };
+    } else {
+      state.calib = { i: 0, pairs: [], cur: null, cam: null, targets: state.targets,
+                      screenWH: state.padWH };
+    }
     state.lastPad.clear();
     calibPrompt();
   }
 
   function calibPrompt() {
     const c = state.calib;
+    const who = c.cam === null ? "" : `camera ${c.cam}: `;
     $("cal-status").textContent =
-      `touch target ${c.i + 1} of ${state.targets.length}, hold still, then lift`;
+      `${who}touch target ${c.i + 1} of ${c.targets.length}, hold still, then lift`;
   }
 
   function calibMove(t) {
     const c = state.calib;
     if (!c) return;
+    // a fused touch is in the pixels of its best camera (t.cam): use the calibrated camera's
+    if (c.cam !== null && t.cam !== undefined && t.cam !== c.cam) return;
     if (!c.cur) c.cur = { id: t.id, pts: [] };
     if (c.cur.id === t.id) c.cur.pts.push([t.x, t.y]);
   }
@@ -262,24 +281,27 @@
       $("cal-status").textContent = `target ${c.i + 1}: the touch moved; touch it again and hold still`;
       return;
     }
-    c.pairs.push({ depth: [mx, my], screen: state.targets[c.i] });
+    c.pairs.push({ depth: [mx, my], screen: c.targets[c.i] });
     c.i += 1;
-    if (c.i < state.targets.length) calibPrompt();
-    else finishCalibration(c.pairs);
+    if (c.i < c.targets.length) calibPrompt();
+    else finishCalibration(c);
   }
 
-  async function finishCalibration(pairs) {
+  async function finishCalibration(c) {
     state.calib = null;
     $("cal-status").textContent = "fitting…";
+    const request = { screen_wh: c.screenWH, pairs: c.pairs };
+    if (c.cam !== null) request.cam = c.cam;
     try {
       const r = await fetch("api/calibration", {
         method: "POST",
         headers: { "Content-Type": "application/json" },
-        body: JSON.stringify({ screen_wh: state.padWH, pairs }),
+        body: JSON.stringify(request),
       });
       const body = await r.json();
+      const who = c.cam === null ? "" : `camera ${c.cam} `;
       $("cal-status").textContent = body.ok
-        ? `calibrated: reprojection error ${body.error_px.toFixed(2)} px, saved to ${body.path}`
+        ? `${who}calibrated: reprojection error ${body.error_px.toFixed(2)} px, saved to ${body.path}`
         : `calibration failed: ${body.error}`;
       $("cal-status").dataset.done = body.ok ? "ok" : "error";
     } catch (e) {
@@ -320,10 +342,27 @@
     }
   }
 
+  function showCameras(m) {
+    state.cameras = m;
+    const sel = $("cal-cam");
+    const keep = sel.value;
+    sel.replaceChildren(...m.cameras.map((c) => {
+      const o = document.createElement("option");
+      o.value = String(c.cam);
+      o.textContent = `camera ${c.cam}: ${c.name}`;
+      return o;
+    }));
+    if (keep !== "" && Number(keep) < m.cameras.length) sel.value = keep;
+    sel.hidden = m.cameras.length < 2;
+    $("cams").textContent = window.depthtouchCameras.legend(m);
+  }
+
   function drawOverlay() {
     overlayCtx.clearRect(0, 0, overlay.width, overlay.height);
-    if (state.calib && state.targets) {
-      const [x, y] = state.targets[state.calib.i];
+    if (state.cameras) window.depthtouchCameras.draw(overlayCtx, state.cameras, screenToPad);
+    if (state.calib && state.calib.targets) {
+      const c = state.calib;
+      const [x, y] = screenToPad(c.targets[c.i][0], c.targets[c.i][1], c.screenWH);
       overlayCtx.strokeStyle = "#d22";
       overlayCtx.lineWidth = 3;
       overlayCtx.beginPath();
@@ -372,6 +411,9 @@
         break;
       case "calibration":
         setCalibration(m);
+        break;
+      case "cameras":
+        showCameras(m);
         break;
       case "reset":
         resetTouches();
