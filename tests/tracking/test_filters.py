@@ -270,7 +270,7 @@ def test_adaptive_follows_a_jump_and_smooths_noise():
 
 def test_adaptive_euro_holds_a_still_finger_and_follows_a_drag():
     """At rest the 1€ stage holds: 1 mm noise is cut to under a third (the adaptive filter alone
-    keeps half of it); a finger locked at rest ignores a one-frame jump of 7 mm (a tip that
+    keeps half of it); with the lock on, a finger locked at rest ignores a one-frame jump of 7 mm (a tip that
     jumped to a speck of noise) and follows a finger that moved 7 mm on the second frame (most
     of the way, as the adaptive stage does; a 0.3 Hz stage alone would move 0.5 mm); on a
     400 mm/s drag the speed opens the cutoff: under 2 mm behind (a 30 fps frame is 13 mm of
@@ -286,15 +286,15 @@ def test_adaptive_euro_holds_a_still_finger_and_follows_a_drag():
     out = _run(make_filter("adaptive_euro"), t, drag)
     behind = 400.0 * t[-30:] - out[-30:, 0]
     assert np.median(behind) < 2.0
-    f = make_filter("adaptive_euro")
+    f = make_filter("adaptive_euro", lock_frames=6)
     _run(f, t, np.full((90, 2), 100.0))
     assert f.update(np.array([0]), np.array([[107.0, 100.0]]), 3.0)[0, 0] < 101.0
     assert f.update(np.array([0]), np.array([[100.0, 100.0]]), 3.0 + 1 / 30)[0, 0] < 101.0
-    g = make_filter("adaptive_euro")
+    g = make_filter("adaptive_euro", lock_frames=6)
     _run(g, t, np.full((90, 2), 100.0))
     g.update(np.array([0]), np.array([[107.0, 100.0]]), 3.0)
     assert g.update(np.array([0]), np.array([[107.0, 100.0]]), 3.0 + 1 / 30)[0, 0] > 105.5
-    off = make_filter("adaptive_euro", lock_frames=0)
+    off = make_filter("adaptive_euro")  # the default: no lock
     _run(off, t, np.full((90, 2), 100.0))
     assert off.update(np.array([0]), np.array([[108.0, 100.0]]), 3.0)[0, 0] > 106.0
 
