@@ -84,8 +84,7 @@ def contacts_from_kernel(stream: list[tuple[int, int, int]]) -> tuple[list[Conta
 class Expected:
     """From the events file: each touch id (in the order of its down) -> its screen positions,
     one per event, clipped to the screen like the device's axes; the ids in the order of their
-    ups; how many downs found all slots taken (the replay reports up to 13 touches at once when
-    the arms leave: those never reach the device)."""
+    ups; how many downs found all slots taken (those never reach the device)."""
 
     positions: dict[int, list[tuple[float, float]]]
     ups: list[int]
@@ -155,7 +154,9 @@ def assets():
 
 @pytest.fixture(scope="module")
 def calibrated_events(tmp_path_factory):
-    """A calibrated replay of the simulated multitouch scene: 17 touches, up to 5 at once."""
+    """A calibrated replay of the simulated multitouch scene: 5 touches at once (until session 5
+    the sensor added a dozen false ones as the arms left, which overflowed the 10 slots; the
+    overflow has its own test in test_uinput.py)."""
     from depthtouch.calibration import Calibration, save_calibration
     from depthtouch.cli import main
 
@@ -220,7 +221,7 @@ def test_kernel_delivers_the_events_file(vm_run):
     dev = next(ln for ln in section if ln.startswith("DT-DEV"))
     assert "props=[1]" in dev and "bus=6" in dev  # INPUT_PROP_DIRECT, BUS_VIRTUAL
     contacts, touch = contacts_from_kernel(_stream(section))
-    assert len(want) + dropped >= 8
+    assert len(want) + dropped >= 5
     assert len(contacts) == len(want), "one tracking id per down"
     assert len({c.tracking_id for c in contacts}) == len(contacts)
     assert all(c.released for c in contacts), "every contact released"
