@@ -34,7 +34,9 @@ from .bounds import BandBounds, refresh_rows
 
 _SCALE = 4  # the whole-frame checks run on a 1/4 resolution view
 _BLOCK = 8  # the bump check compares a 1/8 view (2x2 means, every 8th pixel)
-_OFFSET_MIN_SHARE = 0.25  # ... when at least this share of its usable pixels are unchanged
+# a stripe's median offset moves it only when at least this share of its usable pixels are
+# unchanged (else the median would be a hand's or an object's)
+_OFFSET_MIN_SHARE = 0.25
 
 
 class SurfaceAdapter:
@@ -178,8 +180,9 @@ class SurfaceAdapter:
         self._visit_t[k] = t
         self._have_prev[k] = True
         self._visits[k] += 1
-        # the drift moves the bounds by fractions of a unit: refreshing them every 8th visit is
-        # enough; an absorbed object must count at once
+        # the slow follow moves the bounds by fractions of a unit: refreshing them every 8th
+        # visit is enough; an absorbed object or a stripe moved by its offset must count at once
+        # (the offset's pass and this refresh cost about 0.2 ms per frame, docs/benchmarks.md)
         if n_abs or shifted or self._visits[k] % 8 == 0:
             refresh_rows(b, y0, y1)
 
