@@ -87,6 +87,9 @@ class TouchPoints:
         twice the attached length in px); None means unknown.
     attach_height_mm: (N,) median height of those hand pixels above the surface (NaN when
         none); None means unknown.
+    back_spread_mm: (N,) spread of the heights behind the tip, along and beside the finger
+        (NaN when unknown; a finger rises behind its tip, a flat object's top is level); None
+        means unknown.
     """
 
     xy_px: np.ndarray
@@ -96,6 +99,7 @@ class TouchPoints:
     hand_at_border: np.ndarray | None = None
     attach_px: np.ndarray | None = None
     attach_height_mm: np.ndarray | None = None
+    back_spread_mm: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         n = self.xy_px.shape[0] if self.xy_px.ndim == 2 else -1
@@ -109,6 +113,8 @@ class TouchPoints:
             _check_shape("TouchPoints.attach_px", self.attach_px, (n,))
         if self.attach_height_mm is not None:
             _check_shape("TouchPoints.attach_height_mm", self.attach_height_mm, (n,))
+        if self.back_spread_mm is not None:
+            _check_shape("TouchPoints.back_spread_mm", self.back_spread_mm, (n,))
 
     @classmethod
     def empty(cls) -> TouchPoints:
@@ -121,9 +127,10 @@ class TouchPoints:
         border = None if self.hand_at_border is None else self.hand_at_border[index]
         attach = None if self.attach_px is None else self.attach_px[index]
         att_h = None if self.attach_height_mm is None else self.attach_height_mm[index]
+        back = None if self.back_spread_mm is None else self.back_spread_mm[index]
         return TouchPoints(
             self.xy_px[index], self.height_mm[index], self.area_px[index], self.hand_xy_px[index],
-            border, attach, att_h,
+            border, attach, att_h, back,
         )
 
 

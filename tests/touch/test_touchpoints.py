@@ -204,3 +204,22 @@ def test_mixed_pixels_at_the_side_of_a_raised_hand_sit_next_to_a_high_step(bound
     tp = detect(bounds, [], flat=hm)
     assert len(tp) >= 1 and tp.attach_height_mm is not None
     assert (tp.attach_height_mm > 80.0).all()
+
+
+def test_heights_behind_a_fingertip_rise_and_behind_a_held_books_edge_are_level(bounds):
+    """The kernel's back spread (heights 10-40 mm behind the tip on the finger's axis and the
+    nearer of those 20 mm to its sides, max - min) read by TrackingConfig.flat_max_mm: a finger
+    stands above the surface beside it whatever its pitch; a patch of a book's top that dips
+    into the band (its top lies just above Tu, so noise and mixed pixels cut it) has the book's
+    level top behind it."""
+    for pitch in (8.0, 15.0, 35.0, 60.0):  # a finger nearly flat still stands above its sides
+        tip = detect(bounds, [Finger(320, 240, 90, pitch_deg=pitch)])
+        assert len(tip) == 1 and tip.back_spread_mm is not None
+        assert tip.back_spread_mm[0] > 10.0, pitch
+    book = np.zeros((480, 640), np.float32)
+    book[200:320, 300:] = 27.0  # 200 mm wide, from x = 300 to the image border (held there)
+    patch = int(15 / MM_PER_PX)
+    book[250:250 + patch, 300:300 + patch] = 15.0  # its corner dips into the band
+    tp = detect(bounds, [], flat=book)
+    assert len(tp) >= 1 and tp.back_spread_mm is not None
+    assert (tp.back_spread_mm < 4.0).all()

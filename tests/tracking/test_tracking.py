@@ -343,3 +343,18 @@ def test_a_region_next_to_a_high_step_gives_no_evidence(step_mm: float, goes_dow
     tr = Tracker(TrackingConfig(down_frames=2, step_max_mm=80.0), scale_mm_per_px=1.0)
     states = [s for f in run(tr, [tip] * 8) for _, s in f]
     assert ("down" in states) == goes_down
+
+
+@pytest.mark.parametrize(("spread_mm", "goes_down"),
+                         [(25.0, True), (2.0, False), (np.inf, True), (np.nan, True)])
+def test_a_region_with_level_heights_behind_it_gives_no_evidence(spread_mm: float,
+                                                                 goes_down: bool) -> None:
+    """A finger rises behind its tip (25 mm of spread); the level top of a held book behind a
+    patch of it in the band (2 mm) is not a finger; unknown heights take nothing away."""
+    tip = TouchPoints(np.array([[100.0, 100.0]]), np.array([5.0]), np.array([300]),
+                      np.array([[np.nan, np.nan]]), None, np.array([10]), np.array([35.0]),
+                      np.array([spread_mm]))
+    tr = Tracker(TrackingConfig(down_frames=2, flat_max_mm=10.0), scale_mm_per_px=1.0)
+    assert ("down" in [s for f in run(tr, [tip] * 8) for _, s in f]) == goes_down
+    off = Tracker(TrackingConfig(down_frames=2, flat_max_mm=0.0), scale_mm_per_px=1.0)
+    assert "down" in [s for f in run(off, [tip] * 8) for _, s in f]

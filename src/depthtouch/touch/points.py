@@ -58,12 +58,12 @@ def find_touch_points(
         KernelSurface(b.high_lo, b.high_hi, b.surface_mm, b.factor, b.tl_mm, b.valid, b.to_mm),
         KernelRegions(core, pad, regions.bbox_xywh, regions.mask_buf, regions.mask_start),
         TipParams(config.tip_radius_mm / b.mm_per_px, config.method == "paper",
-                  config.paper_ds_px, config.paper_tt_mm),
+                  config.paper_ds_px, config.paper_tt_mm, b.mm_per_px),
     )
     if out.xy_px.shape[0] == 0:
         return TouchPoints.empty()
     return TouchPoints(out.xy_px, out.height_mm, out.area_px, out.hand_xy_px, out.hand_at_border,
-                       out.attach_px, out.attach_height_mm)
+                       out.attach_px, out.attach_height_mm, out.back_spread_mm)
 
 
 def _core_of(regions: Regions, shape: tuple[int, ...]) -> np.ndarray:

@@ -13,7 +13,8 @@ check that both give the same points.
 :class:`KernelRegions`, :class:`TipParams`), one out (:class:`FramePoints`), units in the names.
 Inside, the compiled kernel takes the arrays one by one and returns (N, 9) rows: x, y (image px,
 sub-pixel), height (mm, NaN when unknown), area (px), hand x, hand y (px), hand at border (0/1),
-attachment (hand pixels within 2 px of the region), their median height (mm).
+attachment (hand pixels within 2 px of the region), their median height (mm), the spread of the
+heights behind the tip (mm, see :func:`_back_spread`).
 """
 
 from __future__ import annotations
@@ -26,7 +27,11 @@ import numpy as np
 
 from .fingertip import extremity, paper, project, split
 
-N_OUT = 9
+N_OUT = 10
+#: where the heights behind a tip are read (mm back along the finger's axis; the sides are
+#: read this far back and this far to either side)
+_BACK_ALONG_MM = (10.0, 15.0, 20.0, 30.0, 40.0)
+_BACK_SIDE_MM = 20.0
 _A, _B = 0.955, 1.3693  # OpenCV's 3x3 distance-transform weights (DIST_L2, mask 3)
 _INF = 1e30
 
@@ -154,6 +159,63 @@ def _attach(near: np.ndarray, depth: np.ndarray, high_lo: np.ndarray,
     return n, sx / n, sy / n, border, float(np.median(hv[:n]))
 
 
+@numba.njit(cache=True, nogil=True)
+def _height_at(depth: np.ndarray, surf: np.ndarray, fact: np.ndarray, valid: np.ndarray,
+               to_mm: float, x: float, y: float) -> float:
+    """Height (mm) at image point (x, y): the mean of the known pixels of the 3x3 around it;
+    NaN outside the image or where fewer than 3 of 9 are known."""
+    H, W = depth.shape
+    xi, yi = int(round(x)), int(round(y))
+    if xi < 1 or yi < 1 or xi > W - 2 or yi > H - 2:
+        return np.nan
+    acc = 0.0
+    n = 0
+    for yy in range(yi - 1, yi + 2):
+        for xx in range(xi - 1, xi + 2):
+            d = depth[yy, xx]
+            if d > 0 and valid[yy, xx]:
+                acc += (surf[yy, xx] - d * to_mm) * fact[yy, xx]
+                n += 1
+    return acc / n if n >= 3 else np.nan
+
+
+@numba.njit(cache=True, nogil=True)
+def _back_spread(depth: np.ndarray, surf: np.ndarray, fact: np.ndarray, valid: np.ndarray,
+                 to_mm: float, tx: float, ty: float, ux: float, uy: float, mm_px: float
+                 ) -> float:
+    """How level it is behind a tip at (tx, ty) whose finger points along (ux, uy): the spread
+    (max - min, mm) of the heights 10, 15, 20, 30 and 40 mm back on its axis, and of the one of
+    the two heights 20 mm back and 20 mm to either side that is nearer to them. A finger rises
+    behind its tip and is narrow: beside it lies the surface, so its spread is at least the
+    finger's height there (>= 12 mm, flat or steep). The top of a flat object held at Tu (a
+    book) or the flank of a resting forearm is level along the axis and on at least one side
+    (0-3 mm). NaN when fewer than 4 of the 5 heights on the axis are known."""
+    lo = np.inf
+    hi = -np.inf
+    acc = 0.0
+    n = 0
+    for a in _BACK_ALONG_MM:
+        v = _height_at(depth, surf, fact, valid, to_mm, tx - a * ux / mm_px, ty - a * uy / mm_px)
+        if v == v:
+            lo = min(lo, v)
+            hi = max(hi, v)
+            acc += v
+            n += 1
+    if n < 4:
+        return np.nan
+    mid = acc / n
+    bx, by = tx - _BACK_SIDE_MM * ux / mm_px, ty - _BACK_SIDE_MM * uy / mm_px
+    side = np.nan
+    for sgn in (-1.0, 1.0):
+        v = _height_at(depth, surf, fact, valid, to_mm, bx - sgn * _BACK_SIDE_MM * uy / mm_px,
+                       by + sgn * _BACK_SIDE_MM * ux / mm_px)
+        if v == v and not abs(side - mid) <= abs(v - mid):
+            side = v
+    if side != side:  # nothing known beside the axis: take it as not level
+        return np.inf
+    return max(hi, side) - min(lo, side)
+
+
 class KernelSurface(NamedTuple):
     """The surface as the kernel reads it (see :class:`depthtouch.surface.bounds.BandBounds`):
     hand bounds in camera units, surface depth in mm, height factor, Tl in mm, usable pixels,
@@ -181,13 +243,15 @@ class KernelRegions(NamedTuple):
 
 
 class TipParams(NamedTuple):
-    """The fingertip radius (px), the estimator (the paper's pixel or the tip's centre) and the
-    paper's parameters (search step in px, height threshold in mm)."""
+    """The fingertip radius (px), the estimator (the paper's pixel or the tip's centre), the
+    paper's parameters (search step in px, height threshold in mm) and the surface's scale (mm
+    per px, where the heights behind a tip are read)."""
 
     tip_radius_px: float
     paper: bool
     paper_ds_px: int
     paper_tt_mm: float
+    mm_per_px: float
 
 
 class FramePoints(NamedTuple):
@@ -195,7 +259,9 @@ class FramePoints(NamedTuple):
     height above the surface (mm, NaN when unknown), region area (px), centre of the attached
     hand (px), whether that hand reaches the image border, how many hand pixels lie within 2 px
     of the region (its attachment: about twice its length in px), their median height above the
-    surface (mm; a finger rises from the band gradually, the side of a raised hand does not)."""
+    surface (mm; a finger rises from the band gradually, the side of a raised hand does not), and
+    the spread of the heights behind the tip (mm, NaN when unknown; a finger's is large, a flat
+    object's top is level)."""
 
     xy_px: np.ndarray
     height_mm: np.ndarray
@@ -204,6 +270,7 @@ class FramePoints(NamedTuple):
     hand_at_border: np.ndarray
     attach_px: np.ndarray
     attach_height_mm: np.ndarray
+    back_spread_mm: np.ndarray
 
 
 def frame_points(depth: np.ndarray, hands: np.ndarray, hand_scale: int, surface: KernelSurface,
@@ -217,10 +284,11 @@ def frame_points(depth: np.ndarray, hands: np.ndarray, hand_scale: int, surface:
     out = _frame_points(depth, s.high_lo, s.high_hi, hands, hand_scale, s.surface_mm, s.factor,
                         s.tl_mm, s.valid, float(s.to_mm), r.core, int(r.open_pad_px),
                         r.bbox_xywh, r.mask_buf, r.mask_start, float(p.tip_radius_px),
-                        1 if p.paper else 0, int(p.paper_ds_px), float(p.paper_tt_mm))
+                        1 if p.paper else 0, int(p.paper_ds_px), float(p.paper_tt_mm),
+                        float(p.mm_per_px))
     return FramePoints(out[:, 0:2].copy(), out[:, 2].copy(), out[:, 3].astype(np.int64),
                        out[:, 4:6].copy(), out[:, 6] > 0, out[:, 7].astype(np.int64),
-                       out[:, 8].copy())
+                       out[:, 8].copy(), out[:, 9].copy())
 
 
 @numba.njit(cache=True, nogil=True)
@@ -228,9 +296,9 @@ def _frame_points(
     depth: np.ndarray, high_lo: np.ndarray, high_hi: np.ndarray, hands: np.ndarray, scale: int,
     surf: np.ndarray, fact: np.ndarray, tl: np.ndarray, valid: np.ndarray, to_mm: float,
     core: np.ndarray, open_pad: int, boxes: np.ndarray, masks: np.ndarray, mask_start: np.ndarray,
-    r0: float, method: int, paper_ds: int, paper_tt: float,
+    r0: float, method: int, paper_ds: int, paper_tt: float, mm_px: float,
 ) -> np.ndarray:
-    """Touch points of all regions of a frame: (N, 9) rows (see the module doc).
+    """Touch points of all regions of a frame: (N, 10) rows (see the module doc).
 
     Each region is worked on in a window 2 rr + 2 px around its box (the growth reaches 2 rr,
     the hand attaches within 2 px); the band 3 r0 + 3 px around it is looked at only when other
@@ -338,6 +406,10 @@ def _frame_points(
             out[n_out, 6] = 1.0 if pborder else 0.0
             out[n_out, 7] = patt
             out[n_out, 8] = att_h
+            bdx, bdy = sx / n_p - phx, sy / n_p - phy
+            bn = math.hypot(bdx, bdy)
+            out[n_out, 9] = (_back_spread(depth, surf, fact, valid, to_mm, px_ + x0, py_ + y0,
+                                          bdx / bn, bdy / bn, mm_px) if bn > 1e-6 else np.nan)
             n_out += 1
             if n_out == out.shape[0]:
                 return out[:n_out]
@@ -471,4 +543,4 @@ def warm_up() -> None:
     for method in (0, 1):
         frame_points(depth, hands, 4, KernelSurface(lo, hi, f32 * 1000, f32, f32 * 4, valid, 1.0),
                      KernelRegions(core, 1, boxes, masks, start),
-                     TipParams(3.0, method == 1, 6, 18.0))
+                     TipParams(3.0, method == 1, 6, 18.0, 2.0))

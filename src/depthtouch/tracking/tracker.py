@@ -187,7 +187,8 @@ class Tracker:
             for i in members:
                 shift[i] = (k, step)
         down_frames = self.config.down_frames
-        weight = self._evidence_weights(area, points.attach_px, points.attach_height_mm)
+        weight = self._evidence_weights(area, points.attach_px, points.attach_height_mm,
+                                        points.back_spread_mm)
         for i, t in enumerate(tracks):
             j = matched_t.get(i)
             if i in shift:
@@ -255,7 +256,8 @@ class Tracker:
         return out
 
     def _evidence_weights(self, area_px: list[int], attach_px: np.ndarray | None = None,
-                          attach_height_mm: np.ndarray | None = None) -> list[float]:
+                          attach_height_mm: np.ndarray | None = None,
+                          back_spread_mm: np.ndarray | None = None) -> list[float]:
         """How much one frame of each point counts toward ``down`` (see TrackingConfig).
 
         A region of a fingertip's size (``tip_area_mm2`` range) counts a whole frame; a smaller
@@ -265,8 +267,9 @@ class Tracker:
         more than ``attach_max_mm`` (the broad edge of a forearm or a palm lying in the band, not
         a fingertip at the end of a finger) counts nothing, and so does one whose attached hand
         pixels lie higher than ``step_max_mm`` (a finger rises from the band gradually; mixed
-        pixels at the side of a raised hand jump). Without a scale (no intrinsics)
-        every frame counts whole.
+        pixels at the side of a raised hand jump), and so does one with level heights behind it
+        (``flat_max_mm``: the top of a held book, the flank of a forearm; a finger rises and
+        is narrow). Without a scale (no intrinsics) every frame counts whole.
         """
         scale = self.scale_mm_per_px
         n = len(area_px)
@@ -290,6 +293,9 @@ class Tracker:
             # (an unknown height, NaN, compares False: no evidence taken away)
             w = [0.0 if a > step else v
                  for v, a in zip(w, attach_height_mm.tolist(), strict=True)]
+        flat = self.config.flat_max_mm
+        if back_spread_mm is not None and flat > 0:
+            w = [0.0 if a < flat else v for v, a in zip(w, back_spread_mm.tolist(), strict=True)]
         return w
 
     def _cost(self, pos: list[XY], ok_cont: list[bool], ok_new: list[bool]) -> list[list[float]]:
