@@ -42,6 +42,9 @@ FILTERS: tuple[str, ...] = ("none", "lowpass", "kalman", "adaptive", "one_euro",
 #: (docs/filters.md): the adaptive filter's turns and lag, with a finger at rest held still.
 DEFAULT_FILTER = "adaptive_euro"
 
+#: Measurements kept per touch for the rest lock's stillness test (the largest lock_frames).
+LOCK_WINDOW = 32
+
 
 class NoFilter(FilterBase):
     """``none``: returns the measurements unchanged (the raw path)."""
@@ -247,26 +250,29 @@ class AdaptiveEuroFilter(FilterBase):
         "speed_cutoff_hz": Param(3.0, 0.0, 1000.0),
         "hold_mm": Param(3.0, 0.0, 1000.0),
         "lock_mm": Param(4.0, 0.0, 1000.0),
-        "lock_frames": Param(0.0, 0.0, 1000.0, lo_open=False),
-        "lock_mean_frames": Param(12.0, 1.0, 10000.0, lo_open=False),
-        "lock_mm_s": Param(40.0, 0.0, 10000.0),
+        "lock_frames": Param(0.0, 0.0, float(LOCK_WINDOW), lo_open=False),
+        "lock_mean_frames": Param(30.0, 1.0, 1e6, lo_open=False),
+        "lock_mm_s": Param(10.0, 0.0, 10000.0),
+        "lock_sigmas": Param(3.0, 0.0, 100.0, lo_open=False),
     }
     # the adaptive stage's position (mm) and velocity (mm/s); the smoothed speed vector (mm/s);
     # the 1€ stage's output (mm); the lock: the two-frame mean of the measurements (mm), their
     # running mean (mm), how many frames it holds, the mean square of their distance (mm²)
-    _FIELDS = {"p": (2,), "v": (2,), "dx": (2,), "e": (2,), "h1": (2,), "h2": (2,), "m": (2,),
-               "n": (1,), "s2": (1,)}
+    _FIELDS = {"p": (2,), "v": (2,), "dx": (2,), "e": (2,), "hx": (LOCK_WINDOW,),
+               "hy": (LOCK_WINDOW,), "ht": (LOCK_WINDOW,), "hn": (1,), "m": (2,), "n": (1,),
+               "r2": (1,)}
 
     def _init(self, rows: np.ndarray, xy: np.ndarray) -> None:
         self._state["p"][rows] = xy
         self._state["v"][rows] = 0.0
         self._state["dx"][rows] = 0.0
         self._state["e"][rows] = xy
-        self._state["h1"][rows] = xy
-        self._state["h2"][rows] = xy
-        self._state["m"][rows] = xy
-        self._state["n"][rows] = 1.0
-        self._state["s2"][rows] = 0.0
+        for k in ("hx", "hy", "ht", "hn", "m", "n", "r2"):
+            self._state[k][rows] = 0.0
+        self._state["hx"][rows] = xy[:, 0:1]
+        self._state["hy"][rows] = xy[:, 1:2]
+        self._state["ht"][rows] = self._t[rows][:, None]
+        self._state["hn"][rows] = 1.0
 
     def _step(self, s: np.ndarray, xy: np.ndarray, dt_s: np.ndarray) -> np.ndarray:
         p_col, v_col, dx_col = self._COLS["p"], self._COLS["v"], self._COLS["dx"]
@@ -297,36 +303,55 @@ class AdaptiveEuroFilter(FilterBase):
         s[:, e_col] = e
         if prm["lock_frames"] <= 0:
             return e
-        return self._lock(s, xy, e, speed < prm["lock_mm_s"])
+        return self._lock(s, xy, e, s[:, 2] + dt_s)
 
-    def _lock(self, s: np.ndarray, xy: np.ndarray, e: np.ndarray, slow: np.ndarray
+    def _lock(self, s: np.ndarray, xy: np.ndarray, e: np.ndarray, t_s: np.ndarray
               ) -> np.ndarray:
         """The lock of a finger at rest (see the class doc): updates its fields, returns the
         output."""
         c = self._COLS
         prm = self.params
-        # the median of the last three measurements: a one-frame outlier (a tip that jumped
-        # to a speck of noise) does not move it
-        h1, h2 = s[:, c["h1"]], s[:, c["h2"]]
-        q = np.maximum(np.minimum(xy, h1), np.minimum(np.maximum(xy, h1), h2))
-        s[:, c["h2"]], s[:, c["h1"]] = h1, xy
-        m, n, s2 = s[:, c["m"]], s[:, c["n"]][:, 0], s[:, c["s2"]][:, 0]
-        d2 = np.sum((q - m) ** 2, axis=1)
-        radius2 = np.maximum(prm["lock_mm"] ** 2, 6.25 * s2)
-        # a finger that starts to move leaves at once: its measurement alone is beyond twice the
-        # radius (a one-frame jump that far is not told from a start; a nearer one is ignored)
-        raw2 = np.sum((xy - m) ** 2, axis=1)
-        stay = (d2 <= radius2) & (raw2 <= 4.0 * radius2)
-        # leaving the lock starts a new one here; staying adds the measurement to the mean, and
-        # counts toward the lock only while the 1€ stage sees rest (a slow drag never locks)
-        n = np.where(stay, np.where(slow | (n > prm["lock_frames"]), n + 1.0, n), 1.0)
-        k = np.minimum(n, prm["lock_mean_frames"])
-        m = np.where(stay[:, None], m + (xy - m) / k[:, None], xy)
-        s2 = np.where(stay, s2 + (d2 - s2) / k, 0.0)
+        frames = max(int(prm["lock_frames"]), 3)  # the median of three needs three
+        # the last LOCK_WINDOW measurements and their times, newest first
+        hx, hy, ht = s[:, c["hx"]], s[:, c["hy"]], s[:, c["ht"]]
+        hx[:, 1:], hy[:, 1:], ht[:, 1:] = hx[:, :-1].copy(), hy[:, :-1].copy(), ht[:, :-1].copy()
+        hx[:, 0], hy[:, 0], ht[:, 0] = xy[:, 0], xy[:, 1], t_s
+        hn = np.minimum(s[:, c["hn"]][:, 0] + 1.0, LOCK_WINDOW)
+        s[:, c["hx"]], s[:, c["hy"]], s[:, c["ht"]] = hx, hy, ht
+        s[:, c["hn"]] = hn[:, None]
+        # stillness: the least-squares line through the last `frames` measurements is slower
+        # than lock_mm_s; its residual spread sigma (mm per axis) scales the lock's radius
+        tau = ht[:, :frames] - t_s[:, None]
+        tau = tau - tau.mean(axis=1, keepdims=True)
+        stt = np.maximum(np.sum(tau * tau, axis=1), 1e-12)
+        px, py = hx[:, :frames], hy[:, :frames]
+        bx = np.sum(tau * px, axis=1) / stt
+        by = np.sum(tau * py, axis=1) / stt
+        rx = px - px.mean(axis=1, keepdims=True) - bx[:, None] * tau
+        ry = py - py.mean(axis=1, keepdims=True) - by[:, None] * tau
+        sig2 = (np.sum(rx * rx, axis=1) + np.sum(ry * ry, axis=1)) / (2.0 * max(frames - 2, 1))
+        still = (hn >= frames) & (np.hypot(bx, by) <= prm["lock_mm_s"])
+        # the median of the last three measurements: a one-frame jump does not move it
+        med = np.stack([np.median(hx[:, :3], axis=1), np.median(hy[:, :3], axis=1)], axis=1)
+        m, n, r2 = s[:, c["m"]], s[:, c["n"]][:, 0], s[:, c["r2"]][:, 0]
+        locked = n > 0
+        stay = locked & (np.sum((med - m) ** 2, axis=1) <= r2)
+        # the lock's mean runs over the rest (the last lock_mean_frames), fed only by
+        # measurements within twice its radius: a far outlier changes neither output nor mean
+        # (a nearer one moves the mean by 1/n of its distance; excluding those too measured
+        # worse, as they are most of a noisy camera's spread)
+        near = stay & (np.sum((xy - m) ** 2, axis=1) <= 4.0 * r2)
+        n = np.where(near, np.minimum(n + 1.0, prm["lock_mean_frames"]), n)
+        m = np.where(near[:, None], m + (xy - m) / np.maximum(n, 1.0)[:, None], m)
+        enter = ~locked & still
+        mean_now = np.stack([px.mean(axis=1), py.mean(axis=1)], axis=1)
+        m = np.where(enter[:, None], mean_now, m)
+        r2_new = np.maximum(prm["lock_mm"] ** 2, prm["lock_sigmas"] ** 2 * sig2)
+        r2 = np.where(enter, r2_new, r2)
+        n = np.where(enter, float(frames), np.where(stay, n, 0.0))
         s[:, c["m"]] = m
-        s[:, c["n"]], s[:, c["s2"]] = n[:, None], s2[:, None]
-        locked = n > prm["lock_frames"]
-        return np.where(locked[:, None], m, e)
+        s[:, c["n"]], s[:, c["r2"]] = n[:, None], r2[:, None]
+        return np.where((n > 0)[:, None], m, e)
 
 
 _CLASSES: dict[str, type[FilterBase]] = {
