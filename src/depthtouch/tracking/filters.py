@@ -42,9 +42,6 @@ FILTERS: tuple[str, ...] = ("none", "lowpass", "kalman", "adaptive", "one_euro",
 #: (docs/filters.md): the adaptive filter's turns and lag, with a finger at rest held still.
 DEFAULT_FILTER = "adaptive_euro"
 
-#: Measurements kept per touch for the rest lock's stillness test (the largest lock_frames).
-LOCK_WINDOW = 32
-
 
 class NoFilter(FilterBase):
     """``none``: returns the measurements unchanged (the raw path)."""
@@ -250,29 +247,33 @@ class AdaptiveEuroFilter(FilterBase):
         "speed_cutoff_hz": Param(3.0, 0.0, 1000.0),
         "hold_mm": Param(3.0, 0.0, 1000.0),
         "lock_mm": Param(4.0, 0.0, 1000.0),
-        "lock_frames": Param(0.0, 0.0, float(LOCK_WINDOW), lo_open=False),
+        "lock_frames": Param(32.0, 0.0, 10000.0, lo_open=False),
         "lock_mean_frames": Param(30.0, 1.0, 1e6, lo_open=False),
-        "lock_mm_s": Param(10.0, 0.0, 10000.0),
+        "lock_mm_s": Param(5.0, 0.0, 10000.0),
         "lock_sigmas": Param(3.0, 0.0, 100.0, lo_open=False),
+        "noise_mm": Param(1.0, 0.0, 100.0),
+        "noise_s": Param(1.0, 0.0, 1000.0),
+        "weight_sigmas": Param(0.0, 0.0, 100.0, lo_open=False),
+        "hold_sigmas": Param(2.0, 0.0, 100.0, lo_open=False),
     }
     # the adaptive stage's position (mm) and velocity (mm/s); the smoothed speed vector (mm/s);
-    # the 1€ stage's output (mm); the lock: the two-frame mean of the measurements (mm), their
-    # running mean (mm), how many frames it holds, the mean square of their distance (mm²)
-    _FIELDS = {"p": (2,), "v": (2,), "dx": (2,), "e": (2,), "hx": (LOCK_WINDOW,),
-               "hy": (LOCK_WINDOW,), "ht": (LOCK_WINDOW,), "hn": (1,), "m": (2,), "n": (1,),
-               "r2": (1,)}
+    # the 1€ stage's output (mm); the noise: the last two measurements (mm), how many were seen,
+    # the noise estimate (mm RMS per axis); the stillness test: exponentially weighted sums of
+    # the measurements over time (weight, Σt, Σt², Σx, Σtx; t in s relative to the last update);
+    # the lock: its mean (mm), its frame count (0 = not locked), its squared radius (mm²)
+    _FIELDS = {"p": (2,), "v": (2,), "dx": (2,), "e": (2,), "z1": (2,), "z2": (2,), "nz": (1,),
+               "sd": (1,), "q0": (1,), "qt": (1,), "qtt": (1,), "qx": (2,), "qtx": (2,),
+               "m": (2,), "n": (1,), "r2": (1,)}
 
     def _init(self, rows: np.ndarray, xy: np.ndarray) -> None:
-        self._state["p"][rows] = xy
-        self._state["v"][rows] = 0.0
-        self._state["dx"][rows] = 0.0
-        self._state["e"][rows] = xy
-        for k in ("hx", "hy", "ht", "hn", "m", "n", "r2"):
-            self._state[k][rows] = 0.0
-        self._state["hx"][rows] = xy[:, 0:1]
-        self._state["hy"][rows] = xy[:, 1:2]
-        self._state["ht"][rows] = self._t[rows][:, None]
-        self._state["hn"][rows] = 1.0
+        st = self._state
+        for k in ("v", "dx", "qt", "qtt", "qtx", "m", "n", "r2"):
+            st[k][rows] = 0.0
+        for k in ("p", "e", "z1", "z2", "qx"):
+            st[k][rows] = xy
+        st["nz"][rows] = 1.0
+        st["q0"][rows] = 1.0
+        st["sd"][rows] = self.params["noise_mm"]
 
     def _step(self, s: np.ndarray, xy: np.ndarray, dt_s: np.ndarray) -> np.ndarray:
         p_col, v_col, dx_col = self._COLS["p"], self._COLS["v"], self._COLS["dx"]
@@ -282,7 +283,10 @@ class AdaptiveEuroFilter(FilterBase):
         innov = xy - pred
         d_mm = np.hypot(innov[:, 0], innov[:, 1])
         w0 = smoothing_factor(dt_s, prm["min_cutoff_hz"])
-        w = w0 + (1.0 - w0) * (1.0 - np.exp2(-((d_mm / prm["half_weight_mm"]) ** 2)))
+        sd, med = self._recent(s, xy, dt_s)
+        half_mm = np.maximum(prm["half_weight_mm"], prm["weight_sigmas"] * sd)
+        hold_mm = np.maximum(prm["hold_mm"], prm["hold_sigmas"] * sd)
+        w = w0 + (1.0 - w0) * (1.0 - np.exp2(-((d_mm / half_mm) ** 2)))
         beta = w * w / (2.0 - w)
         p = pred + w[:, None] * innov
         dt = dt_s[:, None]
@@ -298,57 +302,75 @@ class AdaptiveEuroFilter(FilterBase):
         a = smoothing_factor(dt_s, cutoff)
         # a gap the noise cannot explain (a tip that landed off its first measurement, a start)
         # is closed at once, as the adaptive stage's weight does
-        a = a + (1.0 - a) * (1.0 - np.exp2(-((np.hypot(gap[:, 0], gap[:, 1]) / prm["hold_mm"]) ** 2)))
+        a = a + (1.0 - a) * (1.0 - np.exp2(-((np.hypot(gap[:, 0], gap[:, 1]) / hold_mm) ** 2)))
         e = prev + a[:, None] * gap
         s[:, e_col] = e
         if prm["lock_frames"] <= 0:
             return e
-        return self._lock(s, xy, e, s[:, 2] + dt_s)
+        return self._lock(s, xy, e, dt_s, sd, med)
 
-    def _lock(self, s: np.ndarray, xy: np.ndarray, e: np.ndarray, t_s: np.ndarray
-              ) -> np.ndarray:
+    def _recent(self, s: np.ndarray, xy: np.ndarray, dt_s: np.ndarray
+                ) -> tuple[np.ndarray, np.ndarray]:
+        """The touch's measurement noise (mm RMS per axis, from the second differences of its
+        measurements) and the median of its last three measurements, with this one."""
+        c = self._COLS
+        prm = self.params
+        z1, z2 = s[:, c["z1"]], s[:, c["z2"]]
+        sd, nz = s[:, c["sd"]][:, 0], s[:, c["nz"]][:, 0]
+        # white noise of sd per axis gives second differences of RMS sqrt(6)·sd per axis, a
+        # mean norm of 3.07·sd; a jump or a turn is clipped so that one does not inflate it
+        dd = xy - 2.0 * z1 + z2
+        est = np.minimum(np.hypot(dd[:, 0], dd[:, 1]) / 3.07, 3.0 * sd + 1.0)
+        rate = np.maximum(1.0 / np.maximum(nz - 1.0, 1.0),
+                          smoothing_factor(dt_s, 1.0 / (2.0 * np.pi * prm["noise_s"])))
+        sd = np.where(nz >= 2.0, sd + rate * (est - sd), sd)
+        med = np.maximum(np.minimum(xy, z1), np.minimum(np.maximum(xy, z1), z2))
+        med = np.where((nz >= 2.0)[:, None], med, xy)
+        s[:, c["z2"]], s[:, c["z1"]] = z1, xy
+        s[:, c["sd"]], s[:, c["nz"]] = sd[:, None], (nz + 1.0)[:, None]
+        return np.asarray(sd), med
+
+    def _lock(self, s: np.ndarray, xy: np.ndarray, e: np.ndarray, dt_s: np.ndarray,
+              sd: np.ndarray, med: np.ndarray) -> np.ndarray:
         """The lock of a finger at rest (see the class doc): updates its fields, returns the
         output."""
         c = self._COLS
         prm = self.params
-        frames = max(int(prm["lock_frames"]), 3)  # the median of three needs three
-        # the last LOCK_WINDOW measurements and their times, newest first
-        hx, hy, ht = s[:, c["hx"]], s[:, c["hy"]], s[:, c["ht"]]
-        hx[:, 1:], hy[:, 1:], ht[:, 1:] = hx[:, :-1].copy(), hy[:, :-1].copy(), ht[:, :-1].copy()
-        hx[:, 0], hy[:, 0], ht[:, 0] = xy[:, 0], xy[:, 1], t_s
-        hn = np.minimum(s[:, c["hn"]][:, 0] + 1.0, LOCK_WINDOW)
-        s[:, c["hx"]], s[:, c["hy"]], s[:, c["ht"]] = hx, hy, ht
-        s[:, c["hn"]] = hn[:, None]
-        # stillness: the least-squares line through the last `frames` measurements is slower
-        # than lock_mm_s; its residual spread sigma (mm per axis) scales the lock's radius
-        tau = ht[:, :frames] - t_s[:, None]
-        tau = tau - tau.mean(axis=1, keepdims=True)
-        stt = np.maximum(np.sum(tau * tau, axis=1), 1e-12)
-        px, py = hx[:, :frames], hy[:, :frames]
-        bx = np.sum(tau * px, axis=1) / stt
-        by = np.sum(tau * py, axis=1) / stt
-        rx = px - px.mean(axis=1, keepdims=True) - bx[:, None] * tau
-        ry = py - py.mean(axis=1, keepdims=True) - by[:, None] * tau
-        sig2 = (np.sum(rx * rx, axis=1) + np.sum(ry * ry, axis=1)) / (2.0 * max(frames - 2, 1))
-        still = (hn >= frames) & (np.hypot(bx, by) <= prm["lock_mm_s"])
-        # the median of the last three measurements: a one-frame jump does not move it
-        med = np.stack([np.median(hx[:, :3], axis=1), np.median(hy[:, :3], axis=1)], axis=1)
+        frames = max(prm["lock_frames"], 2.0)  # a line needs two points
+        # stillness: the weighted least-squares line through the measurements (weights
+        # decaying by 1 - 1/lock_frames per frame; sums kept about the current time, so old
+        # times shift by -dt) is slower than lock_mm_s
+        q0, qt, qtt = s[:, c["q0"]][:, 0], s[:, c["qt"]][:, 0], s[:, c["qtt"]][:, 0]
+        qx, qtx = s[:, c["qx"]], s[:, c["qtx"]]
+        keep = 1.0 - 1.0 / frames
+        qtt = (qtt - 2.0 * dt_s * qt + dt_s * dt_s * q0) * keep
+        qtx = (qtx - dt_s[:, None] * qx) * keep
+        qt = (qt - dt_s * q0) * keep
+        q0 = q0 * keep + 1.0
+        qx = qx * keep + xy
+        s[:, c["q0"]], s[:, c["qt"]], s[:, c["qtt"]] = q0[:, None], qt[:, None], qtt[:, None]
+        s[:, c["qx"]], s[:, c["qtx"]] = qx, qtx
+        den = np.maximum(q0 * qtt - qt * qt, 1e-12)
+        slope = (q0[:, None] * qtx - qt[:, None] * qx) / den[:, None]
+        seen = s[:, c["nz"]][:, 0] - 1.0  # measurements so far, this one included
+        still = (seen >= frames) & (np.hypot(slope[:, 0], slope[:, 1]) <= prm["lock_mm_s"])
+        # a lock holds while the median of the last three measurements (a one-frame jump does
+        # not move it) stays within its radius
         m, n, r2 = s[:, c["m"]], s[:, c["n"]][:, 0], s[:, c["r2"]][:, 0]
-        locked = n > 0
-        stay = locked & (np.sum((med - m) ** 2, axis=1) <= r2)
-        # the lock's mean runs over the rest (the last lock_mean_frames), fed only by
-        # measurements within twice its radius: a far outlier changes neither output nor mean
-        # (a nearer one moves the mean by 1/n of its distance; excluding those too measured
-        # worse, as they are most of a noisy camera's spread)
+        stay = (n > 0) & (np.sum((med - m) ** 2, axis=1) <= r2)
+        # its mean runs over the rest (the last lock_mean_frames), fed only by measurements
+        # within twice its radius: a far outlier changes neither output nor mean (a nearer one
+        # moves the mean by 1/n of its distance; leaving those out too measured worse, as they
+        # are much of a noisy camera's spread)
         near = stay & (np.sum((xy - m) ** 2, axis=1) <= 4.0 * r2)
         n = np.where(near, np.minimum(n + 1.0, prm["lock_mean_frames"]), n)
         m = np.where(near[:, None], m + (xy - m) / np.maximum(n, 1.0)[:, None], m)
-        enter = ~locked & still
-        mean_now = np.stack([px.mean(axis=1), py.mean(axis=1)], axis=1)
-        m = np.where(enter[:, None], mean_now, m)
-        r2_new = np.maximum(prm["lock_mm"] ** 2, prm["lock_sigmas"] ** 2 * sig2)
-        r2 = np.where(enter, r2_new, r2)
-        n = np.where(enter, float(frames), np.where(stay, n, 0.0))
+        # a new lock starts from the 1€ stage's output (no jump), counted as lock_frames
+        # frames of mean (at most lock_mean_frames); its radius follows the touch's noise
+        enter = (n <= 0) & still
+        m = np.where(enter[:, None], e, m)
+        r2 = np.where(enter, np.maximum(prm["lock_mm"], prm["lock_sigmas"] * sd) ** 2, r2)
+        n = np.where(enter, min(frames, prm["lock_mean_frames"]), np.where(stay, n, 0.0))
         s[:, c["m"]] = m
         s[:, c["n"]], s[:, c["r2"]] = n[:, None], r2[:, None]
         return np.where((n > 0)[:, None], m, e)
