@@ -12,8 +12,9 @@ Five filters, selectable by name (:data:`FILTERS`) through :func:`make_filter`:
   beta·|dx/dt|``, numerically the same as the authors' reference implementation (PyPI
   ``OneEuroFilter``).
 - ``adaptive_euro``: the adaptive filter followed by a 1€ stage whose cutoff follows the speed
-  (the norm of the velocity, the same on both axes): a finger at rest is held still, a drag
-  passes with the adaptive filter's lag.
+  (the norm of the velocity, the same on both axes), and a lock of a finger proven at rest: a
+  finger at rest is held still (a one-frame jump of its tip ignored), a drag passes with the
+  adaptive filter's lag.
 
 Every filter keeps its state per touch id in arrays, so one frame's update runs over all active
 touches at once. Positions are millimetres on the surface, so the parameters are physical.
@@ -218,22 +219,38 @@ class AdaptiveEuroFilter(FilterBase):
         default 0.2 (at 100 mm/s above rest the cutoff is 20 Hz).
     speed_cutoff_hz: cutoff of the speed estimate, range (0, 1000], default 3.0.
     hold_mm: the stage's weight rises toward 1 with the gap g between its output and the
-        adaptive stage's, ``a + (1 − a)·(1 − 2^(−(g/hold_mm)²))``: a gap the noise cannot
-        explain (a tip that landed off its first measurement) is closed at once; range
-        (0, 1000], default 3.0 mm.
-    lock_mm, lock_frames: a finger at rest is locked: while the measurements (the median of
-        the last three) stay within the lock radius of their running mean, that mean is the output once
-        ``lock_frames`` have passed; the radius is ``lock_mm`` (default 4 mm) or 2.5 times the
-        measured spread of that median, whichever is larger, and a measurement beyond twice
-        the radius leaves at once. Leaving it ends the lock and the output is the 1€ stage's
-        again (it ran all along). The mean runs over at most ``lock_mean_frames`` (default 12),
-        so a finger that creeps is followed. Frames count toward the lock only while the 1€
-        stage's speed is under ``lock_mm_s`` (default 40 mm/s), so a slow drag never locks.
-        Off by default (lock_frames 0; 6 turns it on), by measurement (docs/filters.md): on
-        point paths with 1-3 mm noise it cuts jitter 2.18 -> 1.14 mm at 1.9 ms lag, and the
-        hard suite's held-out half 2.47 -> 2.12 mm, but on the default suite it held slowly
-        moving fingers back (multitouch error median 3.26 -> 5.31 mm, frame recall of drags
-        0.997 -> 0.944).
+        adaptive stage's, ``a + (1 − a)·(1 − 2^(−(g/h)²))``, h = max(hold_mm, hold_sigmas·σ):
+        a gap the noise cannot explain (a tip that landed off its first measurement) is closed
+        at once; range (0, 1000], default 3.0 mm.
+    hold_sigmas: h in units of the touch's measured noise σ (mm RMS per axis, from the second
+        differences of its measurements: 3.07·σ is their mean norm for white noise; each
+        clipped at 3σ + 1 mm so that a jump or a turn does not inflate it; averaged over
+        ``noise_s``, default 1 s, starting from ``noise_mm``, default 1 mm); range [0, 100],
+        default 0 (hold_mm alone). 2 closes only gaps a camera's noise cannot make: on the
+        hard suite it cut jitter 2.21 -> 2.03 mm and the angle error 13.1 -> 12.9°, but it
+        moved fingers of the default suite a little (pinch error median 2.24 -> 2.30 mm,
+        distractors p95 5.71 -> 6.07 mm), so it ships off (docs/filters.md).
+    weight_sigmas: likewise for the adaptive stage, whose half weight becomes max(
+        half_weight_mm, weight_sigmas·σ); range [0, 100], default 0 (off: on the hard suite 6
+        cut the angle error 13.1 -> 9.2° but raised the error median, docs/filters.md).
+    The rest lock (lock_frames > 0): a finger proven still is held at the running mean of its
+    measurements, ignoring one-frame jumps of its tip estimate.
+
+    - It locks when the weighted least-squares line through its measurements (weights decaying
+      by 1 − 1/lock_frames per frame: about the last ``lock_frames``, default 32, after at
+      least that many) moves slower than ``lock_mm_s`` (default 5 mm/s). Noise cannot fake
+      this: the line's slope is known to about ±1-2 mm/s, so a slow drag (10 mm/s and more)
+      never locks and passes exactly as with the lock off.
+    - The lock starts at the 1€ stage's output (no jump), with a radius of max(``lock_mm``,
+      ``lock_sigmas``·σ) (defaults 4 mm, 3). Its mean then runs over the last
+      ``lock_mean_frames`` (default 30) measurements that lie within twice the radius: a far
+      outlier moves neither the output nor the mean.
+    - It ends when the median of the last three measurements leaves the radius: a one-frame
+      jump never ends it, a real move ends it on its second frame (then the 1€ stage, which
+      ran all along, is the output again; it closes the gap at once).
+    - Ranges: lock_frames [0, 10000] (0 turns the lock off, values under 2 count as 2),
+      lock_mm_s (0, 10000], lock_mm (0, 1000], lock_sigmas [0, 100], lock_mean_frames
+      [1, 1e6], noise_mm (0, 100], noise_s (0, 1000].
     Defaults chosen by measurement (docs/filters.md).
     """
 
@@ -254,7 +271,7 @@ class AdaptiveEuroFilter(FilterBase):
         "noise_mm": Param(1.0, 0.0, 100.0),
         "noise_s": Param(1.0, 0.0, 1000.0),
         "weight_sigmas": Param(0.0, 0.0, 100.0, lo_open=False),
-        "hold_sigmas": Param(2.0, 0.0, 100.0, lo_open=False),
+        "hold_sigmas": Param(0.0, 0.0, 100.0, lo_open=False),
     }
     # the adaptive stage's position (mm) and velocity (mm/s); the smoothed speed vector (mm/s);
     # the 1€ stage's output (mm); the noise: the last two measurements (mm), how many were seen,
