@@ -223,9 +223,11 @@ class FilterConfig:
 
     params: finite numbers by name; which names a filter takes is checked by filters.py.
     The default, ``adaptive_euro`` (the paper's adaptive filter followed by a speed-gated 1€
-    stage), was chosen by measurement on the hard suite's tune half (docs/filters.md): lower
-    jitter of a still finger and fewer id switches than the adaptive filter alone, the same
-    position error and angle error.
+    stage and a lock of a finger proven at rest), was chosen by measurement on the hard suite's
+    tune half (docs/filters.md): lower jitter of a still finger and fewer id switches than the
+    adaptive filter alone, the same position error and angle error; the rest lock (on by
+    default since issue 13, point 4) ignores one-frame jumps of a resting tip and never
+    engages on a drag of 10 mm/s or more.
     """
 
     name: str = "adaptive_euro"

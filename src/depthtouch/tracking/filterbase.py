@@ -70,8 +70,9 @@ class FilterBase:
     State lives in one array with a row per active touch: the columns are the last output (mm,
     ``_out``), the time of the last update (s, ``_t``) and the named fields of ``_FIELDS``
     (``_state[name]``; each field is a vector per touch), all views of ``_buf``. ``_init`` fills
-    the rows of new touches from their first measurement; ``_step`` advances a copy of the rows
-    whose dt > 0 (their fields in place) and returns their output.
+    the rows of new touches from their first measurement (their ``_t`` is already set);
+    ``_step`` advances a copy of the rows whose dt > 0 (their fields in place) and returns
+    their output.
     """
 
     name: ClassVar[str] = ""
@@ -191,9 +192,9 @@ class FilterBase:
         rows, is_new = self._lookup(id_list)
         if is_new.any():
             new_rows = rows[is_new]
-            self._init(new_rows, xy[is_new])
             self._out[new_rows] = xy[is_new]
-            self._t[new_rows] = t
+            self._t[new_rows] = t  # before _init, which may read it
+            self._init(new_rows, xy[is_new])
         old_rows, old_xy = rows[~is_new], xy[~is_new]
         dt_s = t - self._t[old_rows]
         moved = dt_s > 0.0  # dt <= 0: no time elapsed, keep the previous output and state

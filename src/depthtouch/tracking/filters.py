@@ -12,8 +12,9 @@ Five filters, selectable by name (:data:`FILTERS`) through :func:`make_filter`:
   beta·|dx/dt|``, numerically the same as the authors' reference implementation (PyPI
   ``OneEuroFilter``).
 - ``adaptive_euro``: the adaptive filter followed by a 1€ stage whose cutoff follows the speed
-  (the norm of the velocity, the same on both axes): a finger at rest is held still, a drag
-  passes with the adaptive filter's lag.
+  (the norm of the velocity, the same on both axes), and a lock of a finger proven at rest: a
+  finger at rest is held still (a one-frame jump of its tip ignored), a drag passes with the
+  adaptive filter's lag.
 
 Every filter keeps its state per touch id in arrays, so one frame's update runs over all active
 touches at once. Positions are millimetres on the surface, so the parameters are physical.
@@ -218,22 +219,38 @@ class AdaptiveEuroFilter(FilterBase):
         default 0.2 (at 100 mm/s above rest the cutoff is 20 Hz).
     speed_cutoff_hz: cutoff of the speed estimate, range (0, 1000], default 3.0.
     hold_mm: the stage's weight rises toward 1 with the gap g between its output and the
-        adaptive stage's, ``a + (1 − a)·(1 − 2^(−(g/hold_mm)²))``: a gap the noise cannot
-        explain (a tip that landed off its first measurement) is closed at once; range
-        (0, 1000], default 3.0 mm.
-    lock_mm, lock_frames: a finger at rest is locked: while the measurements (the median of
-        the last three) stay within the lock radius of their running mean, that mean is the output once
-        ``lock_frames`` have passed; the radius is ``lock_mm`` (default 4 mm) or 2.5 times the
-        measured spread of that median, whichever is larger, and a measurement beyond twice
-        the radius leaves at once. Leaving it ends the lock and the output is the 1€ stage's
-        again (it ran all along). The mean runs over at most ``lock_mean_frames`` (default 12),
-        so a finger that creeps is followed. Frames count toward the lock only while the 1€
-        stage's speed is under ``lock_mm_s`` (default 40 mm/s), so a slow drag never locks.
-        Off by default (lock_frames 0; 6 turns it on), by measurement (docs/filters.md): on
-        point paths with 1-3 mm noise it cuts jitter 2.18 -> 1.14 mm at 1.9 ms lag, and the
-        hard suite's held-out half 2.47 -> 2.12 mm, but on the default suite it held slowly
-        moving fingers back (multitouch error median 3.26 -> 5.31 mm, frame recall of drags
-        0.997 -> 0.944).
+        adaptive stage's, ``a + (1 − a)·(1 − 2^(−(g/h)²))``, h = max(hold_mm, hold_sigmas·σ):
+        a gap the noise cannot explain (a tip that landed off its first measurement) is closed
+        at once; range (0, 1000], default 3.0 mm.
+    hold_sigmas: h in units of the touch's measured noise σ (mm RMS per axis, from the second
+        differences of its measurements: 3.07·σ is their mean norm for white noise; each
+        clipped at 3σ + 1 mm so that a jump or a turn does not inflate it; averaged over
+        ``noise_s``, default 1 s, starting from ``noise_mm``, default 1 mm); range [0, 100],
+        default 0 (hold_mm alone). 2 closes only gaps a camera's noise cannot make: on the
+        hard suite it cut jitter 2.21 -> 2.03 mm and the angle error 13.1 -> 12.9°, but it
+        moved fingers of the default suite a little (pinch error median 2.24 -> 2.30 mm,
+        distractors p95 5.71 -> 6.07 mm), so it ships off (docs/filters.md).
+    weight_sigmas: likewise for the adaptive stage, whose half weight becomes max(
+        half_weight_mm, weight_sigmas·σ); range [0, 100], default 0 (off: on the hard suite 6
+        cut the angle error 13.1 -> 9.2° but raised the error median, docs/filters.md).
+    The rest lock (lock_frames > 0): a finger proven still is held at the running mean of its
+    measurements, ignoring one-frame jumps of its tip estimate.
+
+    - It locks when the weighted least-squares line through its measurements (weights decaying
+      by 1 − 1/lock_frames per frame: about the last ``lock_frames``, default 32, after at
+      least that many) moves slower than ``lock_mm_s`` (default 5 mm/s). Noise cannot fake
+      this: the line's slope is known to about ±1-2 mm/s, so a slow drag (10 mm/s and more)
+      never locks and passes exactly as with the lock off.
+    - The lock starts at the 1€ stage's output (no jump), with a radius of max(``lock_mm``,
+      ``lock_sigmas``·σ) (defaults 4 mm, 3). Its mean then runs over the last
+      ``lock_mean_frames`` (default 30) measurements that lie within twice the radius: a far
+      outlier moves neither the output nor the mean.
+    - It ends when the median of the last three measurements leaves the radius: a one-frame
+      jump never ends it, a real move ends it on its second frame (then the 1€ stage, which
+      ran all along, is the output again; it closes the gap at once).
+    - Ranges: lock_frames [0, 10000] (0 turns the lock off, values under 2 count as 2),
+      lock_mm_s (0, 10000], lock_mm (0, 1000], lock_sigmas [0, 100], lock_mean_frames
+      [1, 1e6], noise_mm (0, 100], noise_s (0, 1000].
     Defaults chosen by measurement (docs/filters.md).
     """
 
@@ -247,26 +264,33 @@ class AdaptiveEuroFilter(FilterBase):
         "speed_cutoff_hz": Param(3.0, 0.0, 1000.0),
         "hold_mm": Param(3.0, 0.0, 1000.0),
         "lock_mm": Param(4.0, 0.0, 1000.0),
-        "lock_frames": Param(0.0, 0.0, 1000.0, lo_open=False),
-        "lock_mean_frames": Param(12.0, 1.0, 10000.0, lo_open=False),
-        "lock_mm_s": Param(40.0, 0.0, 10000.0),
+        "lock_frames": Param(32.0, 0.0, 10000.0, lo_open=False),
+        "lock_mean_frames": Param(30.0, 1.0, 1e6, lo_open=False),
+        "lock_mm_s": Param(5.0, 0.0, 10000.0),
+        "lock_sigmas": Param(3.0, 0.0, 100.0, lo_open=False),
+        "noise_mm": Param(1.0, 0.0, 100.0),
+        "noise_s": Param(1.0, 0.0, 1000.0),
+        "weight_sigmas": Param(0.0, 0.0, 100.0, lo_open=False),
+        "hold_sigmas": Param(0.0, 0.0, 100.0, lo_open=False),
     }
     # the adaptive stage's position (mm) and velocity (mm/s); the smoothed speed vector (mm/s);
-    # the 1€ stage's output (mm); the lock: the two-frame mean of the measurements (mm), their
-    # running mean (mm), how many frames it holds, the mean square of their distance (mm²)
-    _FIELDS = {"p": (2,), "v": (2,), "dx": (2,), "e": (2,), "h1": (2,), "h2": (2,), "m": (2,),
-               "n": (1,), "s2": (1,)}
+    # the 1€ stage's output (mm); the noise: the last two measurements (mm), how many were seen,
+    # the noise estimate (mm RMS per axis); the stillness test: exponentially weighted sums of
+    # the measurements over time (weight, Σt, Σt², Σx, Σtx; t in s relative to the last update);
+    # the lock: its mean (mm), its frame count (0 = not locked), its squared radius (mm²)
+    _FIELDS = {"p": (2,), "v": (2,), "dx": (2,), "e": (2,), "z1": (2,), "z2": (2,), "nz": (1,),
+               "sd": (1,), "q0": (1,), "qt": (1,), "qtt": (1,), "qx": (2,), "qtx": (2,),
+               "m": (2,), "n": (1,), "r2": (1,)}
 
     def _init(self, rows: np.ndarray, xy: np.ndarray) -> None:
-        self._state["p"][rows] = xy
-        self._state["v"][rows] = 0.0
-        self._state["dx"][rows] = 0.0
-        self._state["e"][rows] = xy
-        self._state["h1"][rows] = xy
-        self._state["h2"][rows] = xy
-        self._state["m"][rows] = xy
-        self._state["n"][rows] = 1.0
-        self._state["s2"][rows] = 0.0
+        st = self._state
+        for k in ("v", "dx", "qt", "qtt", "qtx", "m", "n", "r2"):
+            st[k][rows] = 0.0
+        for k in ("p", "e", "z1", "z2", "qx"):
+            st[k][rows] = xy
+        st["nz"][rows] = 1.0
+        st["q0"][rows] = 1.0
+        st["sd"][rows] = self.params["noise_mm"]
 
     def _step(self, s: np.ndarray, xy: np.ndarray, dt_s: np.ndarray) -> np.ndarray:
         p_col, v_col, dx_col = self._COLS["p"], self._COLS["v"], self._COLS["dx"]
@@ -276,7 +300,10 @@ class AdaptiveEuroFilter(FilterBase):
         innov = xy - pred
         d_mm = np.hypot(innov[:, 0], innov[:, 1])
         w0 = smoothing_factor(dt_s, prm["min_cutoff_hz"])
-        w = w0 + (1.0 - w0) * (1.0 - np.exp2(-((d_mm / prm["half_weight_mm"]) ** 2)))
+        sd, med = self._recent(s, xy, dt_s)
+        half_mm = np.maximum(prm["half_weight_mm"], prm["weight_sigmas"] * sd)
+        hold_mm = np.maximum(prm["hold_mm"], prm["hold_sigmas"] * sd)
+        w = w0 + (1.0 - w0) * (1.0 - np.exp2(-((d_mm / half_mm) ** 2)))
         beta = w * w / (2.0 - w)
         p = pred + w[:, None] * innov
         dt = dt_s[:, None]
@@ -292,41 +319,78 @@ class AdaptiveEuroFilter(FilterBase):
         a = smoothing_factor(dt_s, cutoff)
         # a gap the noise cannot explain (a tip that landed off its first measurement, a start)
         # is closed at once, as the adaptive stage's weight does
-        a = a + (1.0 - a) * (1.0 - np.exp2(-((np.hypot(gap[:, 0], gap[:, 1]) / prm["hold_mm"]) ** 2)))
+        a = a + (1.0 - a) * (1.0 - np.exp2(-((np.hypot(gap[:, 0], gap[:, 1]) / hold_mm) ** 2)))
         e = prev + a[:, None] * gap
         s[:, e_col] = e
         if prm["lock_frames"] <= 0:
             return e
-        return self._lock(s, xy, e, speed < prm["lock_mm_s"])
+        return self._lock(s, xy, e, dt_s, sd, med)
 
-    def _lock(self, s: np.ndarray, xy: np.ndarray, e: np.ndarray, slow: np.ndarray
-              ) -> np.ndarray:
+    def _recent(self, s: np.ndarray, xy: np.ndarray, dt_s: np.ndarray
+                ) -> tuple[np.ndarray, np.ndarray]:
+        """The touch's measurement noise (mm RMS per axis, from the second differences of its
+        measurements) and the median of its last three measurements, with this one."""
+        c = self._COLS
+        prm = self.params
+        z1, z2 = s[:, c["z1"]], s[:, c["z2"]]
+        sd, nz = s[:, c["sd"]][:, 0], s[:, c["nz"]][:, 0]
+        # white noise of sd per axis gives second differences of RMS sqrt(6)·sd per axis, a
+        # mean norm of 3.07·sd; a jump or a turn is clipped so that one does not inflate it
+        dd = xy - 2.0 * z1 + z2
+        est = np.minimum(np.hypot(dd[:, 0], dd[:, 1]) / 3.07, 3.0 * sd + 1.0)
+        rate = np.maximum(1.0 / np.maximum(nz - 1.0, 1.0),
+                          smoothing_factor(dt_s, 1.0 / (2.0 * np.pi * prm["noise_s"])))
+        sd = np.where(nz >= 2.0, sd + rate * (est - sd), sd)
+        med = np.maximum(np.minimum(xy, z1), np.minimum(np.maximum(xy, z1), z2))
+        med = np.where((nz >= 2.0)[:, None], med, xy)
+        s[:, c["z2"]], s[:, c["z1"]] = z1, xy
+        s[:, c["sd"]], s[:, c["nz"]] = sd[:, None], (nz + 1.0)[:, None]
+        return np.asarray(sd), med
+
+    def _lock(self, s: np.ndarray, xy: np.ndarray, e: np.ndarray, dt_s: np.ndarray,
+              sd: np.ndarray, med: np.ndarray) -> np.ndarray:
         """The lock of a finger at rest (see the class doc): updates its fields, returns the
         output."""
         c = self._COLS
         prm = self.params
-        # the median of the last three measurements: a one-frame outlier (a tip that jumped
-        # to a speck of noise) does not move it
-        h1, h2 = s[:, c["h1"]], s[:, c["h2"]]
-        q = np.maximum(np.minimum(xy, h1), np.minimum(np.maximum(xy, h1), h2))
-        s[:, c["h2"]], s[:, c["h1"]] = h1, xy
-        m, n, s2 = s[:, c["m"]], s[:, c["n"]][:, 0], s[:, c["s2"]][:, 0]
-        d2 = np.sum((q - m) ** 2, axis=1)
-        radius2 = np.maximum(prm["lock_mm"] ** 2, 6.25 * s2)
-        # a finger that starts to move leaves at once: its measurement alone is beyond twice the
-        # radius (a one-frame jump that far is not told from a start; a nearer one is ignored)
-        raw2 = np.sum((xy - m) ** 2, axis=1)
-        stay = (d2 <= radius2) & (raw2 <= 4.0 * radius2)
-        # leaving the lock starts a new one here; staying adds the measurement to the mean, and
-        # counts toward the lock only while the 1€ stage sees rest (a slow drag never locks)
-        n = np.where(stay, np.where(slow | (n > prm["lock_frames"]), n + 1.0, n), 1.0)
-        k = np.minimum(n, prm["lock_mean_frames"])
-        m = np.where(stay[:, None], m + (xy - m) / k[:, None], xy)
-        s2 = np.where(stay, s2 + (d2 - s2) / k, 0.0)
+        frames = max(prm["lock_frames"], 2.0)  # a line needs two points
+        # stillness: the weighted least-squares line through the measurements (weights
+        # decaying by 1 - 1/lock_frames per frame; sums kept about the current time, so old
+        # times shift by -dt) is slower than lock_mm_s
+        q0, qt, qtt = s[:, c["q0"]][:, 0], s[:, c["qt"]][:, 0], s[:, c["qtt"]][:, 0]
+        qx, qtx = s[:, c["qx"]], s[:, c["qtx"]]
+        keep = 1.0 - 1.0 / frames
+        qtt = (qtt - 2.0 * dt_s * qt + dt_s * dt_s * q0) * keep
+        qtx = (qtx - dt_s[:, None] * qx) * keep
+        qt = (qt - dt_s * q0) * keep
+        q0 = q0 * keep + 1.0
+        qx = qx * keep + xy
+        s[:, c["q0"]], s[:, c["qt"]], s[:, c["qtt"]] = q0[:, None], qt[:, None], qtt[:, None]
+        s[:, c["qx"]], s[:, c["qtx"]] = qx, qtx
+        den = np.maximum(q0 * qtt - qt * qt, 1e-12)
+        slope = (q0[:, None] * qtx - qt[:, None] * qx) / den[:, None]
+        seen = s[:, c["nz"]][:, 0] - 1.0  # measurements so far, this one included
+        still = (seen >= frames) & (np.hypot(slope[:, 0], slope[:, 1]) <= prm["lock_mm_s"])
+        # a lock holds while the median of the last three measurements (a one-frame jump does
+        # not move it) stays within its radius
+        m, n, r2 = s[:, c["m"]], s[:, c["n"]][:, 0], s[:, c["r2"]][:, 0]
+        stay = (n > 0) & (np.sum((med - m) ** 2, axis=1) <= r2)
+        # its mean runs over the rest (the last lock_mean_frames), fed only by measurements
+        # within twice its radius: a far outlier changes neither output nor mean (a nearer one
+        # moves the mean by 1/n of its distance; leaving those out too measured worse, as they
+        # are much of a noisy camera's spread)
+        near = stay & (np.sum((xy - m) ** 2, axis=1) <= 4.0 * r2)
+        n = np.where(near, np.minimum(n + 1.0, prm["lock_mean_frames"]), n)
+        m = np.where(near[:, None], m + (xy - m) / np.maximum(n, 1.0)[:, None], m)
+        # a new lock starts from the 1€ stage's output (no jump), counted as lock_frames
+        # frames of mean (at most lock_mean_frames); its radius follows the touch's noise
+        enter = (n <= 0) & still
+        m = np.where(enter[:, None], e, m)
+        r2 = np.where(enter, np.maximum(prm["lock_mm"], prm["lock_sigmas"] * sd) ** 2, r2)
+        n = np.where(enter, min(frames, prm["lock_mean_frames"]), np.where(stay, n, 0.0))
         s[:, c["m"]] = m
-        s[:, c["n"]], s[:, c["s2"]] = n[:, None], s2[:, None]
-        locked = n > prm["lock_frames"]
-        return np.where(locked[:, None], m, e)
+        s[:, c["n"]], s[:, c["r2"]] = n[:, None], r2[:, None]
+        return np.where((n > 0)[:, None], m, e)
 
 
 _CLASSES: dict[str, type[FilterBase]] = {
