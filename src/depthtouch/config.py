@@ -185,6 +185,17 @@ class TrackingConfig:
         no evidence (default 10 mm, under the thinnest finger's 12; chosen on the hard suite's
         tune half: false touches 36 with the test off, 28 at 6 mm, 25 at 10, 18 at 22, no
         contact lost up to 22; range [0, 100], 0 turns the test off).
+    up_frames: frames a contact may be missing before ``up`` (grace, default 3, >= 1): bridges
+        the frame or two in which fingertips side by side merge into one region.
+    merge_mm: a missing contact within this distance of a contact seen this frame is taken as
+        merged into its neighbour's region (fingertips side by side), not lifted (default 25 mm;
+        half of it in px when K is unknown).
+    merge_frames: how many frames such a merged contact is held before it may go up (default
+        10, range [0, 300]).
+    merge_area_ratio: a touch point whose region is at least this many times as large as the
+        fingertips of two contacts near it holds both (their regions merged): both keep their
+        ids and move with it, each at its place in the pair (default 1.5: one tip is 1, two
+        side by side about 2; range [0, 10], 0 turns it off).
     """
 
     gate_mm: float = 40.0
