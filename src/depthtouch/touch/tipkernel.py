@@ -385,13 +385,14 @@ def _frame_points(
                 # a long edge cut into "fingertips" is still one long attachment: each part
                 # gets at least its share of the whole region's
                 patt = max(na, n_att // n_parts)
+            # the finger's direction: from its hand to the part's centre
+            ddx, ddy = sx / n_p - phx, sy / n_p - phy
+            nn = math.hypot(ddx, ddy)
             if method == 1:
                 px_, py_, ph, ok = paper(part, hs, phx, phy, paper_ds, paper_tt)
                 if not ok:
                     continue
             else:
-                ddx, ddy = sx / n_p - phx, sy / n_p - phy
-                nn = math.hypot(ddx, ddy)
                 if nn < 1e-6:
                     continue
                 own = _own(part, band, x0 - ox0, y0 - oy0)
@@ -406,10 +407,8 @@ def _frame_points(
             out[n_out, 6] = 1.0 if pborder else 0.0
             out[n_out, 7] = patt
             out[n_out, 8] = att_h
-            bdx, bdy = sx / n_p - phx, sy / n_p - phy
-            bn = math.hypot(bdx, bdy)
             out[n_out, 9] = (_back_spread(depth, surf, fact, valid, to_mm, px_ + x0, py_ + y0,
-                                          bdx / bn, bdy / bn, mm_px) if bn > 1e-6 else np.nan)
+                                          ddx / nn, ddy / nn, mm_px) if nn > 1e-6 else np.nan)
             n_out += 1
             if n_out == out.shape[0]:
                 return out[:n_out]

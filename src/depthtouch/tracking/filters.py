@@ -219,20 +219,15 @@ class AdaptiveEuroFilter(FilterBase):
         default 0.2 (at 100 mm/s above rest the cutoff is 20 Hz).
     speed_cutoff_hz: cutoff of the speed estimate, range (0, 1000], default 3.0.
     hold_mm: the stage's weight rises toward 1 with the gap g between its output and the
-        adaptive stage's, ``a + (1 − a)·(1 − 2^(−(g/h)²))``, h = max(hold_mm, hold_sigmas·σ):
-        a gap the noise cannot explain (a tip that landed off its first measurement) is closed
-        at once; range (0, 1000], default 3.0 mm.
-    hold_sigmas: h in units of the touch's measured noise σ (mm RMS per axis, from the second
+        adaptive stage's, ``a + (1 − a)·(1 − 2^(−(g/hold_mm)²))``: a gap the noise cannot
+        explain (a tip that landed off its first measurement) is closed at once; range
+        (0, 1000], default 3.0 mm.
+    noise_mm, noise_s: the touch's measured noise σ (mm RMS per axis, from the second
         differences of its measurements: 3.07·σ is their mean norm for white noise; each
-        clipped at 3σ + 1 mm so that a jump or a turn does not inflate it; averaged over
-        ``noise_s``, default 1 s, starting from ``noise_mm``, default 1 mm); range [0, 100],
-        default 0 (hold_mm alone). 2 closes only gaps a camera's noise cannot make: on the
-        hard suite it cut jitter 2.21 -> 2.03 mm and the angle error 13.1 -> 12.9°, but it
-        moved fingers of the default suite a little (pinch error median 2.24 -> 2.30 mm,
-        distractors p95 5.71 -> 6.07 mm), so it ships off (docs/filters.md).
-    weight_sigmas: likewise for the adaptive stage, whose half weight becomes max(
-        half_weight_mm, weight_sigmas·σ); range [0, 100], default 0 (off: on the hard suite 6
-        cut the angle error 13.1 -> 9.2° but raised the error median, docs/filters.md).
+        clipped at 3σ + 1 mm so that a jump or a turn does not inflate it), averaged over
+        ``noise_s`` (default 1 s) starting from ``noise_mm`` (default 1 mm); it sets the rest
+        lock's radius. (Scaling ``hold_mm`` or ``half_weight_mm`` by it was measured and left
+        out: docs/filters.md.)
     The rest lock (lock_frames > 0): a finger proven still is held at the running mean of its
     measurements, ignoring one-frame jumps of its tip estimate.
 
@@ -270,8 +265,6 @@ class AdaptiveEuroFilter(FilterBase):
         "lock_sigmas": Param(3.0, 0.0, 100.0, lo_open=False),
         "noise_mm": Param(1.0, 0.0, 100.0),
         "noise_s": Param(1.0, 0.0, 1000.0),
-        "weight_sigmas": Param(0.0, 0.0, 100.0, lo_open=False),
-        "hold_sigmas": Param(0.0, 0.0, 100.0, lo_open=False),
     }
     # the adaptive stage's position (mm) and velocity (mm/s); the smoothed speed vector (mm/s);
     # the 1€ stage's output (mm); the noise: the last two measurements (mm), how many were seen,
@@ -300,10 +293,7 @@ class AdaptiveEuroFilter(FilterBase):
         innov = xy - pred
         d_mm = np.hypot(innov[:, 0], innov[:, 1])
         w0 = smoothing_factor(dt_s, prm["min_cutoff_hz"])
-        sd, med = self._recent(s, xy, dt_s)
-        half_mm = np.maximum(prm["half_weight_mm"], prm["weight_sigmas"] * sd)
-        hold_mm = np.maximum(prm["hold_mm"], prm["hold_sigmas"] * sd)
-        w = w0 + (1.0 - w0) * (1.0 - np.exp2(-((d_mm / half_mm) ** 2)))
+        w = w0 + (1.0 - w0) * (1.0 - np.exp2(-((d_mm / prm["half_weight_mm"]) ** 2)))
         beta = w * w / (2.0 - w)
         p = pred + w[:, None] * innov
         dt = dt_s[:, None]
@@ -319,11 +309,12 @@ class AdaptiveEuroFilter(FilterBase):
         a = smoothing_factor(dt_s, cutoff)
         # a gap the noise cannot explain (a tip that landed off its first measurement, a start)
         # is closed at once, as the adaptive stage's weight does
-        a = a + (1.0 - a) * (1.0 - np.exp2(-((np.hypot(gap[:, 0], gap[:, 1]) / hold_mm) ** 2)))
+        a = a + (1.0 - a) * (1.0 - np.exp2(-((np.hypot(gap[:, 0], gap[:, 1]) / prm["hold_mm"]) ** 2)))
         e = prev + a[:, None] * gap
         s[:, e_col] = e
         if prm["lock_frames"] <= 0:
             return e
+        sd, med = self._recent(s, xy, dt_s)
         return self._lock(s, xy, e, dt_s, sd, med)
 
     def _recent(self, s: np.ndarray, xy: np.ndarray, dt_s: np.ndarray
@@ -345,7 +336,7 @@ class AdaptiveEuroFilter(FilterBase):
         med = np.where((nz >= 2.0)[:, None], med, xy)
         s[:, c["z2"]], s[:, c["z1"]] = z1, xy
         s[:, c["sd"]], s[:, c["nz"]] = sd[:, None], (nz + 1.0)[:, None]
-        return np.asarray(sd), med
+        return sd, med
 
     def _lock(self, s: np.ndarray, xy: np.ndarray, e: np.ndarray, dt_s: np.ndarray,
               sd: np.ndarray, med: np.ndarray) -> np.ndarray:
