@@ -53,8 +53,22 @@ class FrameSource(Protocol):
     def frames(self) -> Iterable[Frame | StreamGap]: ...
 
 
+class FrameTimes:
+    """Median and p95 of a summary's ``ms_per_frame`` (NaN when there is none)."""
+
+    ms_per_frame: list[float]
+
+    @property
+    def median_ms(self) -> float:
+        return float(np.median(self.ms_per_frame)) if self.ms_per_frame else float("nan")
+
+    @property
+    def p95_ms(self) -> float:
+        return float(np.percentile(self.ms_per_frame, 95)) if self.ms_per_frame else float("nan")
+
+
 @dataclass
-class DriveStats:
+class DriveStats(FrameTimes):
     """What a drive did. ``ms_per_frame``: the touch path's time of each frame once the surface
     was learned (bounded to the last ``keep`` frames); ``interrupted``: ended by Ctrl-C."""
 
@@ -66,14 +80,6 @@ class DriveStats:
     interrupted: bool = False
     ms_per_frame: list[float] = field(default_factory=list)
     keep: int = 100_000
-
-    @property
-    def median_ms(self) -> float:
-        return float(np.median(self.ms_per_frame)) if self.ms_per_frame else float("nan")
-
-    @property
-    def p95_ms(self) -> float:
-        return float(np.percentile(self.ms_per_frame, 95)) if self.ms_per_frame else float("nan")
 
 
 class Pacer:

@@ -12,11 +12,9 @@ from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
-import numpy as np
-
 from . import stopping
 from .config import PipelineConfig
-from .driver import DriveStats, drive
+from .driver import DriveStats, FrameTimes, drive
 from .errors import ConfigError, SourceError
 from .files import check_output_path
 from .outputs import open_outputs
@@ -28,7 +26,7 @@ from .types import FrameResult
 
 
 @dataclass
-class RunSummary:
+class RunSummary(FrameTimes):
     """What a run did: counts, touches, and the per-frame time of the touch path."""
 
     source: str
@@ -40,14 +38,6 @@ class RunSummary:
     ms_per_frame: list[float] = field(default_factory=list)
     outputs: list[str] = field(default_factory=list)
     interrupted: bool = False
-
-    @property
-    def median_ms(self) -> float:
-        return float(np.median(self.ms_per_frame)) if self.ms_per_frame else float("nan")
-
-    @property
-    def p95_ms(self) -> float:
-        return float(np.percentile(self.ms_per_frame, 95)) if self.ms_per_frame else float("nan")
 
     def describe(self) -> str:
         lines = [
