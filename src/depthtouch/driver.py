@@ -28,7 +28,7 @@ import numpy as np
 from . import stopping
 from .errors import ConfigError, DepthTouchError
 from .outputs.base import Sink
-from .types import Frame, FrameResult, StreamGap
+from .types import Frame, FrameResult, StreamGap, close_quietly
 
 log = logging.getLogger(__name__)
 
@@ -206,10 +206,7 @@ def drive(
     except KeyboardInterrupt:
         interrupted = stats.interrupted = True
     finally:
-        close = getattr(frames, "close", None)
-        if close is not None:
-            with contextlib.suppress(Exception):
-                close()
+        close_quietly(frames)
         stats.touches = len(touched)
     end_touches()
     stats.touches = len(touched)

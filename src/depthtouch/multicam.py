@@ -32,7 +32,7 @@ from .errors import ConfigError, SourceError
 from .fusion import Fusion, FusionConfig, view_polygon
 from .outputs.base import Sink
 from .pipeline import Pipeline
-from .types import Closing, Frame, FrameResult, StreamGap, TouchEvent
+from .types import Closing, Frame, FrameResult, StreamGap, TouchEvent, close_quietly
 
 
 @dataclass(frozen=True)
@@ -100,10 +100,7 @@ class MergedSource(Closing):
                 yield CameraFrame.of(frame, cam, index=instant, last_of_instant=last)
         finally:
             for it in its:
-                close = getattr(it, "close", None)
-                if close is not None:
-                    with contextlib.suppress(Exception):
-                        close()
+                close_quietly(it)
 
 
 def merge_by_time(sources: Sequence[object]) -> MergedSource:

@@ -27,7 +27,7 @@ from .multicam import CameraFrame, MultiPipeline, open_calibrations
 from .outputs.base import Sink
 from .sources.base import DepthSource
 from .sources.camera import CameraStream, StreamCounts
-from .types import Frame, StreamGap
+from .types import Frame, StreamGap, close_quietly
 
 _END = object()
 
@@ -112,10 +112,7 @@ class LiveMerge:
             errors.append(e)
             self.stop.set()
         finally:
-            close = getattr(gen, "close", None)
-            if close is not None:
-                with contextlib.suppress(Exception):
-                    close()
+            close_quietly(gen)
             self.mailbox.finish(cam)
 
     def frames(self) -> Iterator[Frame | StreamGap]:

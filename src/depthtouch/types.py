@@ -6,6 +6,7 @@ an ``empty()`` constructor. Nothing here mutates its inputs.
 
 from __future__ import annotations
 
+import contextlib
 from dataclasses import dataclass, field
 from types import TracebackType
 from typing import Any, Literal, Protocol, TypeVar
@@ -21,6 +22,15 @@ FrameStatus = Literal["learning", "ok", "disturbed", "relearned", "skipped", "en
 
 
 _C = TypeVar("_C", bound="Closing")
+
+
+def close_quietly(obj: object) -> None:
+    """Close ``obj`` if it has ``close()`` (a frame generator, a source), ignoring what that
+    raises: for ``finally`` blocks that must not hide the error that got them there."""
+    close = getattr(obj, "close", None)
+    if close is not None:
+        with contextlib.suppress(Exception):
+            close()
 
 
 class Closing:

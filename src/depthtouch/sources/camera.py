@@ -25,7 +25,7 @@ from collections.abc import Callable, Generator, Iterator
 from dataclasses import dataclass
 
 from ..errors import SourceError
-from ..types import Frame, StreamGap
+from ..types import Frame, StreamGap, close_quietly
 from .base import DepthSource
 
 log = logging.getLogger(__name__)
@@ -103,10 +103,7 @@ class _Reader(threading.Thread):
         except BaseException as e:  # handed to the loop: SourceError = disconnect, else raised
             error = e
         finally:
-            close = getattr(gen, "close", None)
-            if close is not None:
-                with contextlib.suppress(Exception):
-                    close()
+            close_quietly(gen)
             self.mailbox.finish(error)
 
 
