@@ -21,6 +21,7 @@ from numpy.lib.npyio import NpzFile
 
 from ..config import SurfaceConfig
 from ..errors import SurfaceError
+from ..files import check_output_path
 from ..sources.npz import save_npz_atomic
 from ..types import Frame
 
@@ -70,12 +71,7 @@ class SurfaceModel:
 
     def save(self, path: str | Path) -> Path:
         """Write to an ``.npz`` file atomically."""
-        p = Path(path)
-        parent = p.parent if str(p.parent) else Path(".")
-        if p.is_dir():
-            raise SurfaceError(f"{p}: is a folder; give a file name for the surface (.npz)")
-        if not parent.is_dir():
-            raise SurfaceError(f"{p}: folder {parent} does not exist; create it first")
+        p = check_output_path(path, what="the surface (.npz)", error=SurfaceError)
         meta = {"format": SURFACE_FORMAT, "statistic": self.statistic,
                 "depth_scale_m": self.depth_scale_m, "n_frames": self.n_frames}
         arrays = {"mean_mm": self.mean_mm, "mode_mm": self.mode_mm, "median_mm": self.median_mm,
