@@ -10,7 +10,7 @@ from typing import Any
 import numpy as np
 import pytest
 
-from depthtouch.errors import SourceError
+from depthtouch.errors import ConfigError, SourceError
 from depthtouch.evaluation.metrics import (
     evaluate,
     match,
@@ -212,6 +212,22 @@ def test_angle_error_of_a_drag() -> None:
     assert m.angle_error_deg == pytest.approx(10.0, abs=1e-6)
     exact = summarize([evaluate(t, track(1, range(5, 30), lambda f: (200 + 2 * (f - 5), 200)))])
     assert exact.angle_error_deg == pytest.approx(0.0, abs=1e-4)
+
+
+def test_angle_error_steps_span_three_frames_by_default() -> None:
+    # true path along +x at 2 px per frame; the report zig-zags 1 px across it with period 3,
+    # so every 3-frame step is exact while the frame-to-frame steps turn by 26.6 or 45 deg
+    n = 40
+    contacts = {f: [contact(1, 200 + 2 * (f - 5), 200)] for f in range(5, 30)}
+    t = truth_from_dict(doc(n, contacts))
+    zig = (0.0, 1.0, -1.0)
+    ev = track(1, range(5, 30), lambda f: (200 + 2 * (f - 5), 200 + zig[(f - 5) % 3]))
+    assert summarize([evaluate(t, ev)]).angle_error_deg == pytest.approx(0.0, abs=1e-6)
+    one = summarize([evaluate(t, ev, angle_step_frames=1)]).angle_error_deg
+    want = (math.degrees(math.atan(0.5)) * 2 + 45.0) / 3  # +1, -2, +1 px per 2 px step
+    assert one == pytest.approx(want, abs=0.5)
+    with pytest.raises(ConfigError, match="angle_step_frames"):
+        evaluate(t, ev, angle_step_frames=0)
 
 
 def test_jitter_of_a_still_finger() -> None:
