@@ -311,6 +311,9 @@ def _extremity_point(
     # Only what is connected to the region counts: the noise of stereo cameras is spatially
     # correlated, so a 3x3 mean does not remove blobs of it next to the tip.
     raised = hs > np.maximum(tl_mm * np.float32(0.5), np.float32(2.0))
+    # the point is placed on the firm pixels: the region and those clearly raised (the faint
+    # rim flickers by a pixel from frame to frame); the height comes from all of them
+    firm_map = (hs > np.maximum(tl_mm * np.float32(0.85), np.float32(2.0))) | (reg > 0)
     reach = cv2.dilate(reg, k_reach)
     if own is not None:
         reach = cv2.bitwise_and(reach, own)
@@ -335,8 +338,10 @@ def _extremity_point(
     pts = cv2.findNonZero(finger).reshape(-1, 2).astype(np.float64)
     px = pts[:, 0] - hand[0]
     py = pts[:, 1] - hand[1]
-    s = px * dx + py * dy
-    lat = py * dx - px * dy
+    s_all = px * dx + py * dy
+    firm = firm_map[pts[:, 1].astype(np.intp), pts[:, 0].astype(np.intp)]
+    s = s_all[firm]
+    lat = (py * dx - px * dy)[firm]
     # Front of the tip: the farthest 1-px slice along the finger that is at least half a tip
     # radius wide (a one-pixel noise spur in front of the tip is not the tip).
     s0 = float(s.min())
@@ -351,15 +356,18 @@ def _extremity_point(
     l_c = float(l_cap.sum()) / max(1, l_cap.shape[0])
     # The contact is under the centre of the rounded tip. Its position along the finger comes
     # from an area, not an edge: pixels of the tip ahead of the centre fill half a disc of radius
-    # r, so the centre is where the count from the front reaches pi r^2 / 2 (sub-pixel, and a
-    # stray pixel moves it by 1 / (2 r) px instead of 1 px).
+    # r, and their mean lies 4 r / (3 pi) ahead of it (sub-pixel: the pixel grid and a stray
+    # pixel move it by a fraction of a pixel).
     near = np.abs(lat - l_c) <= r + 0.5
     ahead = np.sort(s[near & (s > s_front - 3.0 * r)])[::-1]
     k = int(round(np.pi * r * r / 2.0))
-    s_c = float(ahead[min(k, ahead.size - 1)]) if ahead.size else s_front - r
+    s_c = (float(ahead[:min(k, ahead.size - 1) + 1].mean()) - 4.0 * r / (3.0 * np.pi)
+           if ahead.size else s_front - r)
     x = hand[0] + s_c * dx - l_c * dy
     y = hand[1] + s_c * dy + l_c * dx
-    cap_h = hs[pts[cap, 1].astype(np.intp), pts[cap, 0].astype(np.intp)]
+    # the tip's height: from all the finger's pixels in the cap
+    cap_all = s_all > s_front - 2.0 * r
+    cap_h = hs[pts[cap_all, 1].astype(np.intp), pts[cap_all, 0].astype(np.intp)]
     cap_h = cap_h[cap_h == cap_h]
     if cap_h.size == 0:
         return float(x), float(y), float("nan")

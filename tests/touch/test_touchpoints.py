@@ -223,3 +223,31 @@ def test_heights_behind_a_fingertip_rise_and_behind_a_held_books_edge_are_level(
     tp = detect(bounds, [], flat=book)
     assert len(tp) >= 1 and tp.back_spread_mm is not None
     assert (tp.back_spread_mm < 4.0).all()
+
+
+def test_the_faint_rim_around_a_tip_lowers_its_height_but_does_not_move_its_point():
+    # a finger along +x from a hand at the origin: a 6 px wide body ending in a rounded tip at
+    # x = 20; a rim of faint pixels (not firm), two pixels deep, ahead of it and at its sides
+    from depthtouch.touch.fingertip import extremity
+
+    yy, xx = np.mgrid[0:20, 0:30]
+    body = (np.abs(yy - 10) <= 3) & (xx <= 17)
+    cap = (xx - 17) ** 2 + (yy - 10) ** 2 <= 9
+    finger = body | cap
+    ring = ~finger & ((xx - 17) ** 2 + (yy - 10) ** 2 <= 30) & (xx >= 13)
+    hs = np.where(finger, 12.0, np.where(ring, 1.0, 0.0))
+
+    def point(mask, firm_mask):
+        ys, xs = np.nonzero(mask)
+        return extremity(xs.astype(np.int64), ys.astype(np.int64), firm_mask[ys, xs], hs,
+                         0.0, 10.0, 1.0, 0.0, 3.0)
+
+    x0, y0, h0 = point(finger, finger)
+    x1, y1, h1 = point(finger | ring, finger)
+    assert (x1, y1) == pytest.approx((x0, y0), abs=1e-9)
+    assert h0 == 12.0 and h1 == 1.0
+    # taken as firm, the rim moves the point forward (what a flickering rim did frame to frame)
+    x2, _, _ = point(finger | ring, finger | ring)
+    assert x2 > x0 + 0.3
+    # the centre of the rounded tip (x = 17), within a pixel
+    assert x0 == pytest.approx(17.0, abs=1.0) and y0 == pytest.approx(10.0, abs=0.3)

@@ -96,57 +96,68 @@ def project(xs: np.ndarray, ys: np.ndarray, hx: float, hy: float, ux: float, uy:
 
 
 @numba.njit(cache=True, nogil=True)
-def extremity(finger_x: np.ndarray, finger_y: np.ndarray, hs: np.ndarray, hx: float, hy: float,
-               ux: float, uy: float, r0: float) -> tuple[float, float, float]:
-    """Contact point (window px) and tip height of one finger's pixels."""
+def extremity(finger_x: np.ndarray, finger_y: np.ndarray, firm: np.ndarray, hs: np.ndarray,
+              hx: float, hy: float, ux: float, uy: float, r0: float
+              ) -> tuple[float, float, float]:
+    """Contact point (window px) and tip height of one finger's pixels.
+
+    The point comes from the ``firm`` pixels only (the region and the pixels clearly raised
+    next to it); the height from all of them: the faint rim that the growth adds around a tip
+    (its own mixed pixels, the 3x3 smoothing's spill onto the surface) makes the tip's height
+    lower, as it is, but would move its outline by a pixel from frame to frame.
+    """
     n = finger_x.shape[0]
     s, lat = project(finger_x, finger_y, hx, hy, ux, uy)
     # front: the farthest 1-px slice at least half a tip radius wide
-    s0 = s.min()
-    nb = int(s.max() - s0) + 1
+    s0 = np.inf
+    s1 = -np.inf
+    for i in range(n):
+        if firm[i]:
+            s0 = min(s0, s[i])
+            s1 = max(s1, s[i])
+    nb = int(s1 - s0) + 1
     counts = np.zeros(nb, np.int64)
     for i in range(n):
-        counts[int(s[i] - s0)] += 1
+        if firm[i]:
+            counts[int(s[i] - s0)] += 1
     last = nb - 1
     thr = max(1.0, 0.5 * r0)
-    found = False
     for b in range(nb - 1, -1, -1):
         if counts[b] >= thr:
             last = b
-            found = True
             break
-    if not found:
-        last = nb - 1
     sf = s0 + last + 1.0
     # finger width in a slab behind the tip cap -> radius
     n_slab = 0
     for i in range(n):
-        if s[i] > sf - 3.0 * r0 and s[i] <= sf - r0:
+        if firm[i] and s[i] > sf - 3.0 * r0 and s[i] <= sf - r0:
             n_slab += 1
     r = min(max(n_slab / (4.0 * r0), 0.6 * r0), 1.5 * r0)
     n_cap = 0
     l_sum = 0.0
     for i in range(n):
-        if s[i] > sf - 2.0 * r:
+        if firm[i] and s[i] > sf - 2.0 * r:
             n_cap += 1
             l_sum += lat[i]
     l_c = l_sum / max(1, n_cap)
-    # the tip centre: where the count from the front reaches pi r^2 / 2
+    # the tip centre: pixels ahead of it fill half a disc of radius r; the mean of the
+    # pi r^2 / 2 front-most lies 4 r / (3 pi) ahead of it (a mean, not the k-th pixel: the
+    # pixel grid moves it by a fraction of a pixel, not by one)
     ahead = np.empty(n)
     n_ahead = 0
     for i in range(n):
-        if abs(lat[i] - l_c) <= r + 0.5 and s[i] > sf - 3.0 * r:
+        if firm[i] and abs(lat[i] - l_c) <= r + 0.5 and s[i] > sf - 3.0 * r:
             ahead[n_ahead] = -s[i]
             n_ahead += 1
     k = int(np.rint(math.pi * r * r / 2.0))
     if n_ahead:
         kk = min(k, n_ahead - 1)
-        s_c = -np.sort(ahead[:n_ahead])[kk]  # (np.partition: 9 s more to compile)
+        s_c = -np.sort(ahead[:n_ahead])[:kk + 1].mean() - 4.0 * r / (3.0 * math.pi)
     else:
         s_c = sf - r
     x = hx + s_c * ux - l_c * uy
     y = hy + s_c * uy + l_c * ux
-    # the tip's height: the lower quarter of the cap's smoothed heights
+    # the tip's height: the lower quarter of the cap's smoothed heights (all pixels)
     hv = np.empty(n)
     n_h = 0
     for i in range(n):

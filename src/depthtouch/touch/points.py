@@ -5,9 +5,11 @@ Two estimators, selectable by ``TouchPointConfig.method``:
 - ``extremity`` (default): the region is attached to the hand (pixels above Tu next to it); the
   direction from that attachment to the region points along the finger to its tip. The region is
   grown into neighbouring pixels that pass a lower threshold on a 3x3-smoothed height map (the
-  tip cap that Tl cut away), the front edge of the tip is found along the finger direction, the
-  finger's width behind the tip gives its radius r, and the contact point is r behind the front
-  edge (the centre of the rounded tip, under which it rests on the surface). Sub-pixel.
+  tip cap that Tl cut away; these give the tip's height). On the firm ones among them (the region
+  and those above 0.85 Tl: the faint rim flickers by a pixel from frame to frame) the front edge
+  of the tip is found along the finger direction, the finger's width behind the tip gives its
+  radius r, and the contact point is the centre of the rounded tip, under which it rests on the
+  surface: the mean of the pi r^2 / 2 front-most pixels, less 4 r / (3 pi). Sub-pixel.
 - ``paper`` (Lee & Kwon 2019): a search band of Ds pixels inside the bounding-box edge away from
   the hand; candidates are pixels within Tt of the surface; a candidate counts when its 3x3
   neighbourhood matches one of the block patterns; the touch point is the centre of the block

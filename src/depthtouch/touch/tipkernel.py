@@ -32,6 +32,10 @@ N_OUT = 10
 #: read this far back and this far to either side)
 _BACK_ALONG_MM = (10.0, 15.0, 20.0, 30.0, 40.0)
 _BACK_SIDE_MM = 20.0
+#: the growth into the tip cap takes smoothed heights above this fraction of Tl (they give the
+#: tip's height); the contact point is placed on those above the firmer fraction
+_GROW_TL = 0.5
+_FIRM_TL = 0.85
 _A, _B = 0.955, 1.3693  # OpenCV's 3x3 distance-transform weights (DIST_L2, mask 3)
 _INF = 1e30
 
@@ -396,8 +400,8 @@ def _frame_points(
                 if nn < 1e-6:
                     continue
                 own = _own(part, band, x0 - ox0, y0 - oy0)
-                fx, fy = _grow(part, own, hs, tl, x0, y0, rr)
-                px_, py_, ph = extremity(fx, fy, hs, phx, phy, ddx / nn, ddy / nn, r0)
+                fx, fy, firm = _grow(part, own, hs, tl, x0, y0, rr)
+                px_, py_, ph = extremity(fx, fy, firm, hs, phx, phy, ddx / nn, ddy / nn, r0)
             out[n_out, 0] = px_ + x0
             out[n_out, 1] = py_ + y0
             out[n_out, 2] = ph
@@ -481,9 +485,11 @@ def _own(part: np.ndarray, band: np.ndarray, dx: int, dy: int) -> np.ndarray:
 
 @numba.njit(cache=True, nogil=True)
 def _grow(part: np.ndarray, own: np.ndarray, hs: np.ndarray, tl: np.ndarray, x0: int, y0: int,
-          rr: int) -> tuple[np.ndarray, np.ndarray]:
+          rr: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The finger's pixels near its tip: the part grown into raised pixels within 2 rr of it
-    that are its ``own``, and connected to it (4-neighbours)."""
+    that are its ``own``, and connected to it (4-neighbours). Returns their x, y and whether
+    each is firm: in the part, or raised above ``_FIRM_TL`` Tl (the others are the faint rim
+    above ``_GROW_TL`` Tl, see :func:`fingertip.extremity`)."""
     h, w = part.shape
     reach = _near(part, 2 * rr)
     grown = np.zeros((h, w), np.uint8)
@@ -493,7 +499,7 @@ def _grow(part: np.ndarray, own: np.ndarray, hs: np.ndarray, tl: np.ndarray, x0:
                 grown[y, x] = 1
             elif reach[y, x] and own[y, x]:
                 v = hs[y, x]
-                if v == v and v > max(0.5 * tl[y0 + y, x0 + x], 2.0):
+                if v == v and v > max(_GROW_TL * tl[y0 + y, x0 + x], 2.0):
                     grown[y, x] = 1
     # keep what is connected to the part
     stack_y = np.empty(h * w, np.int64)
@@ -507,11 +513,13 @@ def _grow(part: np.ndarray, own: np.ndarray, hs: np.ndarray, tl: np.ndarray, x0:
                 top += 1
     fx = np.empty(h * w, np.int64)
     fy = np.empty(h * w, np.int64)
+    firm = np.empty(h * w, np.bool_)
     n = 0
     while top > 0:
         top -= 1
         y, x = stack_y[top], stack_x[top]
         fx[n], fy[n] = x, y
+        firm[n] = part[y, x] != 0 or hs[y, x] > max(_FIRM_TL * tl[y0 + y, x0 + x], 2.0)
         n += 1
         for k in range(4):
             yy = y + (1 if k == 0 else -1 if k == 1 else 0)
@@ -520,7 +528,7 @@ def _grow(part: np.ndarray, own: np.ndarray, hs: np.ndarray, tl: np.ndarray, x0:
                 grown[yy, xx] = 2
                 stack_y[top], stack_x[top] = yy, xx
                 top += 1
-    return fx[:n], fy[:n]
+    return fx[:n], fy[:n], firm[:n]
 
 
 def warm_up() -> None:
