@@ -406,8 +406,9 @@ class Experiments:
             "- *down lat*: frames from the first contact frame to the first matched frame "
             "(0 = same frame); *lift lat*: frame of the `up` minus the first frame without "
             "contact (0 = immediate);",
-            "- *angle*: mean angle between successive reported and true displacement vectors "
-            "over drags (true steps under 0.5 mm skipped; the paper's measure); *jitter*: RMS "
+            "- *angle*: mean angle between reported and true displacement vectors over "
+            "3-frame steps of drags (as issue 13 measures it; true steps under 0.5 mm "
+            "skipped; the paper's frame-to-frame steps give larger angles); *jitter*: RMS "
             "distance to the mean of a finger that is still for 10+ frames;",
             "- *ms/frame*: the pipeline's own time per frame on this machine (no rendering).",
             "",

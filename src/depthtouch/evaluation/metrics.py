@@ -11,7 +11,7 @@ document) and a list of :class:`~depthtouch.types.TouchEvent`:
 - a reported track (id) matched in no frame is a false touch; it is attributed to a hovering
   finger when it comes within the gate of one (by the hover's height), else to "other";
 - contact episodes (a truth id over consecutive frames) give recall, id switches, touch-down and
-  lift latency, the drag-path angle error (the paper's measure) and the jitter of a still finger.
+  lift latency, the drag-path angle error (over 3-frame steps) and the jitter of a still finger.
 
 :func:`evaluate` returns the raw per-recording numbers (:class:`EvalResult`); :func:`summarize`
 pools any number of them into one :class:`Metrics` (pooled, not averaged per recording).

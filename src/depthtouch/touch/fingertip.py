@@ -10,6 +10,10 @@ Called by :mod:`depthtouch.touch.tipkernel` for each region of a frame, on a win
   box's edge away from the hand, candidates near the surface, 3x3 block patterns.
 
 Window coordinates throughout; ``hs`` is the window's smoothed height map (mm, NaN unknown).
+
+numba's on-disk cache of :func:`tipkernel._frame_points` does not notice edits to this file (a
+cached function is keyed on its own file only): after editing here, delete
+``src/depthtouch/touch/__pycache__/*.nb[ic]``, or the old code keeps running.
 """
 
 from __future__ import annotations
