@@ -24,7 +24,10 @@ from vm.uinput_vm import REPO, Unavailable, boot, ensure_assets
 GUEST = REPO / "tests" / "vm" / "guest.py"
 SCREEN_WH = (1920, 1080)
 SLOTS = 10  # the device's default
-SIGTERM_AFTER_REPORTS = 25  # reports with a contact down before the guest sends SIGTERM
+# reports with a contact down before the guest sends SIGTERM: in the multitouch replay three
+# contacts are down from frame 88-90 and the fourth comes at the 25th such report (frame 113);
+# the kill must land well before it (the emulated guest takes a few frames to deliver it)
+SIGTERM_AFTER_REPORTS = 10
 EV_SYN, EV_KEY, EV_ABS = 0, 1, 3
 ABS_MT_SLOT, ABS_MT_POSITION_X, ABS_MT_POSITION_Y, ABS_MT_TRACKING_ID = 0x2F, 0x35, 0x36, 0x39
 BTN_TOUCH = 0x14A
