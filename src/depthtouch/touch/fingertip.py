@@ -111,19 +111,15 @@ def extremity(finger_x: np.ndarray, finger_y: np.ndarray, firm: np.ndarray, hs: 
     lower, as it is, but would move its outline by a pixel from frame to frame.
     """
     n = finger_x.shape[0]
-    s, lat = project(finger_x, finger_y, hx, hy, ux, uy)
+    s_all, lat_all = project(finger_x, finger_y, hx, hy, ux, uy)
+    s, lat = s_all[firm], lat_all[firm]
+    m = s.shape[0]
     # front: the farthest 1-px slice at least half a tip radius wide
-    s0 = np.inf
-    s1 = -np.inf
-    for i in range(n):
-        if firm[i]:
-            s0 = min(s0, s[i])
-            s1 = max(s1, s[i])
-    nb = int(s1 - s0) + 1
+    s0 = s.min()
+    nb = int(s.max() - s0) + 1
     counts = np.zeros(nb, np.int64)
-    for i in range(n):
-        if firm[i]:
-            counts[int(s[i] - s0)] += 1
+    for i in range(m):
+        counts[int(s[i] - s0)] += 1
     last = nb - 1
     thr = max(1.0, 0.5 * r0)
     for b in range(nb - 1, -1, -1):
@@ -133,24 +129,24 @@ def extremity(finger_x: np.ndarray, finger_y: np.ndarray, firm: np.ndarray, hs: 
     sf = s0 + last + 1.0
     # finger width in a slab behind the tip cap -> radius
     n_slab = 0
-    for i in range(n):
-        if firm[i] and s[i] > sf - 3.0 * r0 and s[i] <= sf - r0:
+    for i in range(m):
+        if s[i] > sf - 3.0 * r0 and s[i] <= sf - r0:
             n_slab += 1
     r = min(max(n_slab / (4.0 * r0), 0.6 * r0), 1.5 * r0)
     n_cap = 0
     l_sum = 0.0
-    for i in range(n):
-        if firm[i] and s[i] > sf - 2.0 * r:
+    for i in range(m):
+        if s[i] > sf - 2.0 * r:
             n_cap += 1
             l_sum += lat[i]
     l_c = l_sum / max(1, n_cap)
     # the tip centre: pixels ahead of it fill half a disc of radius r; the mean of the
     # pi r^2 / 2 front-most lies 4 r / (3 pi) ahead of it (a mean, not the k-th pixel: the
     # pixel grid moves it by a fraction of a pixel, not by one)
-    ahead = np.empty(n)
+    ahead = np.empty(m)
     n_ahead = 0
-    for i in range(n):
-        if firm[i] and abs(lat[i] - l_c) <= r + 0.5 and s[i] > sf - 3.0 * r:
+    for i in range(m):
+        if abs(lat[i] - l_c) <= r + 0.5 and s[i] > sf - 3.0 * r:
             ahead[n_ahead] = -s[i]
             n_ahead += 1
     k = int(np.rint(math.pi * r * r / 2.0))
@@ -165,7 +161,7 @@ def extremity(finger_x: np.ndarray, finger_y: np.ndarray, firm: np.ndarray, hs: 
     hv = np.empty(n)
     n_h = 0
     for i in range(n):
-        if s[i] > sf - 2.0 * r:
+        if s_all[i] > sf - 2.0 * r:
             v = hs[finger_y[i], finger_x[i]]
             if v == v:
                 hv[n_h] = v

@@ -11,7 +11,7 @@ check that both give the same points.
 
 :func:`frame_points` is the boundary: named tuples of arrays in (:class:`KernelSurface`,
 :class:`KernelRegions`, :class:`TipParams`), one out (:class:`FramePoints`), units in the names.
-Inside, the compiled kernel takes the arrays one by one and returns (N, 9) rows: x, y (image px,
+Inside, the compiled kernel takes the arrays one by one and returns (N, 10) rows: x, y (image px,
 sub-pixel), height (mm, NaN when unknown), area (px), hand x, hand y (px), hand at border (0/1),
 attachment (hand pixels within 2 px of the region), their median height (mm), the spread of the
 heights behind the tip (mm, see :func:`_back_spread`).
