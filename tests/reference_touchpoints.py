@@ -17,6 +17,7 @@ import numpy as np
 from depthtouch.config import TouchPointConfig
 from depthtouch.surface.bounds import HAND_SCALE, BandBounds
 from depthtouch.touch.regions import Regions
+from depthtouch.touch.parallax import foot_px
 from depthtouch.types import TouchPoints
 
 _K3 = np.ones((3, 3), np.uint8)
@@ -151,8 +152,11 @@ def find_touch_points(
                 att, cv2.inRange(levels, 2, 2)))))
     if not xy_out:
         return TouchPoints.empty()
+    xy = np.asarray(xy_out, np.float64)
+    if config.method == "extremity":  # to the surface beneath the tip (tested on its own)
+        xy = foot_px(xy, bounds, config.tip_axis_mm)
     return TouchPoints(
-        np.asarray(xy_out, np.float64), np.asarray(h_out, np.float64),
+        xy, np.asarray(h_out, np.float64),
         np.asarray(a_out, np.int64), np.asarray(hand_out, np.float64),
         np.asarray(border_out, bool),
     )

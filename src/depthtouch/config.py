@@ -135,6 +135,10 @@ class TouchPointConfig:
     paper_ds_px: Ds of the paper's method (default 6).
     paper_tt_mm: Tt of the paper's method (default 18.0: a fingertip's top seen from above is about
         its diameter, 12-20 mm, above the surface).
+    tip_axis_mm: height above the surface of the point on the finger whose image the extremity
+        method finds (about a finger's radius); the touch point is moved to the surface point
+        beneath it, which matters where the camera sees the surface obliquely
+        (:mod:`depthtouch.touch.parallax`); 0 reports the image point as found (default 9).
     """
 
     method: str = "extremity"
@@ -143,6 +147,7 @@ class TouchPointConfig:
     touch_off_mm: float = 18.0
     paper_ds_px: int = 6
     paper_tt_mm: float = 18.0
+    tip_axis_mm: float = 9.0
 
     def validate(self) -> None:
         if self.method not in ("extremity", "paper"):
@@ -154,6 +159,7 @@ class TouchPointConfig:
         _range("touchpoints.touch_off_mm", self.touch_off_mm, self.touch_on_mm, 200.0)
         _range("touchpoints.paper_ds_px", self.paper_ds_px, 1, 100)
         _range("touchpoints.paper_tt_mm", self.paper_tt_mm, 0.0, 200.0, lo_open=True)
+        _range("touchpoints.tip_axis_mm", self.tip_axis_mm, 0.0, 50.0)
 
 
 @dataclass(frozen=True)

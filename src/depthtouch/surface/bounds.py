@@ -15,7 +15,7 @@ import numba
 import numpy as np
 
 from ..config import RegionConfig
-from .model import SurfaceModel, height_factor
+from .model import SurfaceModel, height_factor, surface_normals
 
 HAND_SCALE = 4  # the hand map is kept at 1/4 resolution
 
@@ -27,6 +27,8 @@ class BandBounds:
     band_lo..band_hi: depth of a pixel in the touch band (surface - Tu < d < surface - Tl).
     high_lo..high_hi: depth of hand/arm pixels (higher than Tu, lower than hand_max_mm).
     factor: height per depth difference (see :func:`surface.height_factor`).
+    normals: the surface's unit normals toward the camera (H, W, 3), K its intrinsics; both None
+    when K is unknown.
     tl_mm: Tl per pixel (float32), surface_units: surface depth in camera units (float32).
     min_area_px: S_min in pixels; open_px: opening size actually used.
     """
@@ -52,6 +54,8 @@ class BandBounds:
     hand_lo: np.ndarray | None = None
     hand_hi: np.ndarray | None = None
     hand_valid: np.ndarray | None = None
+    normals: np.ndarray | None = None
+    K: np.ndarray | None = None
 
 
 def _depth_bounds(
@@ -106,7 +110,8 @@ def band_bounds(surface: SurfaceModel, config: RegionConfig, tip_radius_mm: floa
     """
     cfg = config
     to_mm = surface.depth_scale_m * 1000.0
-    f = height_factor(surface)
+    normals = surface_normals(surface)
+    f = height_factor(surface, normals)
     tl = np.maximum(np.float32(cfg.tl_floor_mm), np.float32(cfg.noise_k) * surface.sigma_mm)
     # Tl can never reach Tu: a camera this noisy leaves an empty band (reported, not hidden).
     tl = np.minimum(tl, np.float32(cfg.tu_mm)).astype(np.float32)
@@ -123,7 +128,8 @@ def band_bounds(surface: SurfaceModel, config: RegionConfig, tip_radius_mm: floa
         factor=f, tl_mm=tl, surface_mm=surface_mm, sigma_mm=surface.sigma_mm,
         valid=surface.valid, to_mm=to_mm, mm_per_px=mm_px, min_area_px=min_area,
         open_px=open_px, tu_mm=cfg.tu_mm, hand_max_mm=cfg.hand_max_mm,
-        min_hand_mm2=cfg.min_hand_mm2,
+        min_hand_mm2=cfg.min_hand_mm2, normals=normals,
+        K=None if surface.K is None else np.asarray(surface.K, np.float64),
         hand_lo=_hand_samples(hl), hand_hi=_hand_samples(hh),
         hand_valid=np.ascontiguousarray(surface.valid[::HAND_SCALE, ::HAND_SCALE][
             :max(1, surface.valid.shape[0] // HAND_SCALE), :max(1, surface.valid.shape[1] // HAND_SCALE)]),

@@ -220,38 +220,57 @@ def learn_surface(
     return model.with_statistic(cfg.statistic)
 
 
-def height_factor(surface: SurfaceModel) -> np.ndarray:
-    """Per pixel, height along the surface normal per mm of depth difference, float32 (H, W).
+def surface_normals(surface: SurfaceModel) -> np.ndarray | None:
+    """Per pixel, the surface's unit normal in camera coordinates, pointing toward the camera,
+    float32 (H, W, 3); None without K. Zero where the surface is unusable.
 
-    For a pixel's ray r (unit) and the surface normal n there, a point moved toward the camera by
-    dz along the optical axis moves dz / r_z along the ray and dz * |n . r| / r_z along the
-    normal. Without K the factor is 1 (heights are depth differences).
+    From central differences of the back-projected surface depth, smoothed (Gaussian, sigma 3 px)
+    to tame its noise.
     """
-    h, w = surface.depth_mm.shape
     if surface.K is None:
-        return np.ones((h, w), np.float32)
+        return None
+    import cv2
+
+    h, w = surface.depth_mm.shape
     fx, fy, cx, cy = surface.K[0, 0], surface.K[1, 1], surface.K[0, 2], surface.K[1, 2]
     u = (np.arange(w, dtype=np.float32) - cx) / fx
     v = (np.arange(h, dtype=np.float32) - cy) / fy
     uu, vv = np.meshgrid(u, v)
     z = surface.depth_mm
-    pts = np.stack([uu * z, vv * z, z], axis=-1)
-    # normals from central differences of the back-projected surface; smoothed to tame noise
-    import cv2
-
     zs = cv2.GaussianBlur(np.where(surface.valid, z, 0).astype(np.float32), (0, 0), 3.0)
     ws = cv2.GaussianBlur(surface.valid.astype(np.float32), (0, 0), 3.0)
     zsm = np.where(ws > 1e-3, zs / np.maximum(ws, 1e-3), 0).astype(np.float32)
     pts = np.stack([uu * zsm, vv * zsm, zsm], axis=-1)
-    dx = np.gradient(pts, axis=1)
-    dy = np.gradient(pts, axis=0)
-    n = np.cross(dx, dy)
+    n = np.cross(np.gradient(pts, axis=1), np.gradient(pts, axis=0))
     norm = np.linalg.norm(n, axis=-1, keepdims=True)
     ray = np.stack([uu, vv, np.ones_like(uu)], axis=-1)
+    # toward the camera: against the pixel's ray
+    n = np.where((n * ray).sum(-1, keepdims=True) > 0, -n, n)
+    ok = surface.valid[..., None] & (norm > 0) & np.isfinite(n).all(-1, keepdims=True)
+    return np.where(ok, n / np.maximum(norm, 1e-12), 0.0).astype(np.float32)
+
+
+def height_factor(surface: SurfaceModel, normals: np.ndarray | None = None) -> np.ndarray:
+    """Per pixel, height along the surface normal per mm of depth difference, float32 (H, W).
+
+    For a pixel's ray r (unit) and the surface normal n there, a point moved toward the camera by
+    dz along the optical axis moves dz / r_z along the ray and dz * |n . r| / r_z along the
+    normal. Without K the factor is 1 (heights are depth differences). ``normals``: those of
+    :func:`surface_normals`, when the caller has them already.
+    """
+    h, w = surface.depth_mm.shape
+    n = surface_normals(surface) if normals is None else normals
+    if surface.K is None or n is None:
+        return np.ones((h, w), np.float32)
+    fx, fy, cx, cy = surface.K[0, 0], surface.K[1, 1], surface.K[0, 2], surface.K[1, 2]
+    u = (np.arange(w, dtype=np.float32) - cx) / fx
+    v = (np.arange(h, dtype=np.float32) - cy) / fy
+    uu, vv = np.meshgrid(u, v)
+    ray = np.stack([uu, vv, np.ones_like(uu)], axis=-1)
     ray /= np.linalg.norm(ray, axis=-1, keepdims=True)
-    cos = np.abs((n * ray).sum(-1)) / np.maximum(norm[..., 0], 1e-9)
+    cos = np.abs((n * ray).sum(-1))
     f = cos / ray[..., 2]
-    ok = surface.valid & (norm[..., 0] > 0) & np.isfinite(f)
+    ok = surface.valid & (np.abs(n).sum(-1) > 0) & np.isfinite(f)
     return np.where(ok, np.clip(f, 0.2, 2.0), 1.0).astype(np.float32)
 
 

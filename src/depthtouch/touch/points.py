@@ -34,6 +34,7 @@ from ..config import TouchPointConfig
 from ..surface.bounds import HAND_SCALE, BandBounds
 from ..types import TouchPoints
 from .handmap import hand_map
+from .parallax import foot_px
 from .regions import Regions
 from .tipkernel import KernelRegions, KernelSurface, TipParams, frame_points
 
@@ -64,7 +65,8 @@ def find_touch_points(
     )
     if out.xy_px.shape[0] == 0:
         return TouchPoints.empty()
-    return TouchPoints(out.xy_px, out.height_mm, out.area_px, out.hand_xy_px, out.hand_at_border,
+    xy = foot_px(out.xy_px, b, config.tip_axis_mm) if config.method == "extremity" else out.xy_px
+    return TouchPoints(xy, out.height_mm, out.area_px, out.hand_xy_px, out.hand_at_border,
                        out.attach_px, out.attach_height_mm, out.back_spread_mm)
 
 
