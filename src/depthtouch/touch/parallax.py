@@ -29,29 +29,36 @@ def foot_px(xy_px: np.ndarray, bounds: BandBounds, height_mm: float) -> np.ndarr
     unknown at its pixel, or when ``height_mm`` is 0.
     """
     xy = np.asarray(xy_px, np.float64).reshape(-1, 2)
-    K, normals = bounds.K, bounds.normals
-    if height_mm == 0.0 or K is None or normals is None or xy.shape[0] == 0:
-        return xy.copy()
-    h, w = bounds.surface_mm.shape
-    ix = np.clip(np.rint(xy[:, 0]).astype(np.int64), 0, w - 1)
-    iy = np.clip(np.rint(xy[:, 1]).astype(np.int64), 0, h - 1)
-    z = bounds.surface_mm[iy, ix].astype(np.float64)
-    n = normals[iy, ix].astype(np.float64)
-    fx, fy, cx, cy = K[0, 0], K[1, 1], K[0, 2], K[1, 2]
-    # the shift is computed at the centre of the point's pixel, where the surface depth is known,
-    # and applied to the point (it changes by far less than a pixel from one pixel to the next)
-    px, py = ix.astype(np.float64), iy.astype(np.float64)
-    # the ray through the pixel, scaled so that its depth is 1 mm; n points toward the camera
-    ray = np.stack([(px - cx) / fx, (py - cy) / fy, np.ones(len(xy))], axis=1)
-    toward = -np.sum(n * ray, axis=1)  # height gained per mm of depth toward the camera
-    ok = bounds.valid[iy, ix] & (z > 0) & (toward > 1e-3)
-    # the point at height h on the ray (from the surface point, toward the camera), then down
-    # along the normal to the surface
-    s = np.where(ok, z - height_mm / np.where(ok, toward, 1.0), 1.0)
-    foot = ray * s[:, None] - height_mm * n
     out = xy.copy()
-    zf = foot[:, 2]
-    ok &= zf > 0
-    out[ok, 0] += fx * foot[ok, 0] / zf[ok] + cx - px[ok]
-    out[ok, 1] += fy * foot[ok, 1] / zf[ok] + cy - py[ok]
+    K, normals = bounds.K, bounds.normals
+    if height_mm == 0.0 or K is None or normals is None:
+        return out
+    # a handful of points per frame: plain floats cost less than array calls here
+    (fx, _, cx), (_, fy, cy), _ = K.tolist()
+    depth, valid = bounds.surface_mm, bounds.valid
+    w1, h1 = depth.shape[1] - 1, depth.shape[0] - 1
+    for i, (x, y) in enumerate(xy.tolist()):
+        # the shift is computed at the centre of the point's pixel, where the surface depth is
+        # known, and applied to the point (it changes by far less than a pixel from one pixel
+        # to the next)
+        ix = min(max(round(x), 0), w1)
+        iy = min(max(round(y), 0), h1)
+        z = float(depth[iy, ix])
+        if not valid[iy, ix] or z <= 0.0:
+            continue
+        nx, ny, nz = normals[iy, ix].tolist()  # toward the camera
+        # the ray through the pixel's centre, scaled so that its depth is 1 mm, and the height
+        # it gains per mm of depth toward the camera
+        rx, ry = (ix - cx) / fx, (iy - cy) / fy
+        toward = -(nx * rx + ny * ry + nz)
+        if toward <= 1e-3:
+            continue
+        # the point at height h on the ray (from the surface point, toward the camera), then
+        # down along the normal to the surface
+        t = z - height_mm / toward
+        fx3, fy3, fz3 = rx * t - height_mm * nx, ry * t - height_mm * ny, t - height_mm * nz
+        if fz3 <= 0.0:
+            continue
+        out[i, 0] = x + fx * fx3 / fz3 + cx - ix
+        out[i, 1] = y + fy * fy3 / fz3 + cy - iy
     return out
