@@ -16,8 +16,8 @@ import numpy as np
 
 from depthtouch.config import TouchPointConfig
 from depthtouch.surface.bounds import HAND_SCALE, BandBounds
-from depthtouch.touch.regions import Regions
 from depthtouch.touch.parallax import foot_px
+from depthtouch.touch.regions import Regions
 from depthtouch.types import TouchPoints
 
 _K3 = np.ones((3, 3), np.uint8)
