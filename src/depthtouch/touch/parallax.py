@@ -7,11 +7,12 @@ wide view), the surface point on that pixel's ray lies beyond the contact, away 
 by ``h · tan(θ)`` (h the axis' height, θ the angle between the ray and the surface normal):
 about 5 mm for h = 9 mm at 30°, far more than the tip's noise. Measured on the hard suite's
 tune half, the error along that direction grows with tan θ as if h were 9 mm
-(docs/accuracy.md, section 8).
+(docs/accuracy.md, section 7, session 8).
 
 :func:`foot_px` moves a point to the pixel of the surface point beneath it: the point at height
 h on the pixel's ray, dropped along the surface normal. Straight above the surface (θ = 0) the
-point does not move. Pure; a few points per frame, plain arrays.
+point does not move. The normals are those of the surface as learned (an object absorbed into
+the surface later keeps the normals of the surface under it). Pure; a few points per frame.
 """
 
 from __future__ import annotations

@@ -9,7 +9,10 @@ Two estimators, selectable by ``TouchPointConfig.method``:
   and those above 0.85 Tl: the faint rim flickers by a pixel from frame to frame) the front edge
   of the tip is found along the finger direction, the finger's width behind the tip gives its
   radius r, and the contact point is the centre of the rounded tip, under which it rests on the
-  surface: the mean of the pi r^2 / 2 front-most pixels, less 4 r / (3 pi). Sub-pixel.
+  surface: the mean of the pi r^2 / 2 front-most pixels, less 4 r / (3 pi). Sub-pixel. That
+  point is the image of the tip's centre, about a finger radius above the surface; it is then
+  moved to the surface point beneath it (:mod:`depthtouch.touch.parallax`), which an oblique
+  view would otherwise place beyond the contact.
 - ``paper`` (Lee & Kwon 2019): a search band of Ds pixels inside the bounding-box edge away from
   the hand; candidates are pixels within Tt of the surface; a candidate counts when its 3x3
   neighbourhood matches one of the block patterns; the touch point is the centre of the block
