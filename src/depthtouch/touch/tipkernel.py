@@ -95,6 +95,13 @@ def _chamfer(mask: np.ndarray) -> np.ndarray:
     return d
 
 
+@numba.njit(cache=True, nogil=True, inline="always")
+def _pixel_height(d: int, surf_mm: float, factor: float, to_mm: float) -> float:
+    """Height (mm) above the surface of one known pixel of depth ``d`` (camera units): the
+    kernel's form of :func:`depthtouch.surface.bounds.height_mm`."""
+    return (surf_mm - d * to_mm) * factor
+
+
 @numba.njit(cache=True, nogil=True)
 def _smooth_heights(depth: np.ndarray, surf: np.ndarray, fact: np.ndarray, valid: np.ndarray,
                     to_mm: float, x0: int, y0: int, h: int, w: int) -> np.ndarray:
@@ -107,7 +114,7 @@ def _smooth_heights(depth: np.ndarray, surf: np.ndarray, fact: np.ndarray, valid
         for x in range(w):
             d = dr[x0 + x]
             if d > 0 and vr[x0 + x]:
-                hm[y + 1, x + 1] = (sr[x0 + x] - d * to_mm) * fr[x0 + x]
+                hm[y + 1, x + 1] = _pixel_height(d, sr[x0 + x], fr[x0 + x], to_mm)
                 ok[y + 1, x + 1] = 1.0
     rs = np.empty((h + 2, w), np.float64)
     rc = np.empty((h + 2, w), np.float64)
@@ -152,7 +159,7 @@ def _attach(near: np.ndarray, depth: np.ndarray, high_lo: np.ndarray,
                 continue
             lev = hands[cy, cx]
             if lev >= 1:
-                hv[n] = (surf[y0 + y, x0 + x] - d * to_mm) * fact[y0 + y, x0 + x]
+                hv[n] = _pixel_height(d, surf[y0 + y, x0 + x], fact[y0 + y, x0 + x], to_mm)
                 n += 1
                 sx += x
                 sy += y
@@ -178,7 +185,7 @@ def _height_at(depth: np.ndarray, surf: np.ndarray, fact: np.ndarray, valid: np.
         for xx in range(xi - 1, xi + 2):
             d = depth[yy, xx]
             if d > 0 and valid[yy, xx]:
-                acc += (surf[yy, xx] - d * to_mm) * fact[yy, xx]
+                acc += _pixel_height(d, surf[yy, xx], fact[yy, xx], to_mm)
                 n += 1
     return acc / n if n >= 3 else np.nan
 
