@@ -297,10 +297,101 @@ def test_down_needs_evidence_by_size(area_px: float, down_at: int) -> None:
 
 
 def test_a_blip_off_size_never_goes_down_and_its_evidence_does_not_carry() -> None:
+    # four frames of a speck, two frames without it, four more: its evidence is gone
     tr = Tracker(TrackingConfig(down_frames=2), scale_mm_per_px=1.0)
-    # four frames of a speck, a frame without it, four more: never 5 in a row
+    frames = [_tip(40)] * 4 + [pts(), pts()] + [_tip(40)] * 4
+    assert all(f == [] for f in run(tr, frames))
+    # without the pending gap, one frame without it is enough: never 5 in a row
+    tr = Tracker(TrackingConfig(down_frames=2, pending_gap_frames=0), scale_mm_per_px=1.0)
     frames = [_tip(40)] * 4 + [pts()] + [_tip(40)] * 4
     assert all(f == [] for f in run(tr, frames))
+
+
+@pytest.mark.parametrize(("gap", "decay", "frames", "down_at"), [
+    # a tip seen, lost for a frame, seen again: 1 + 0.75 after the gap, 2.75 on the next
+    (1, 0.75, ["tip", "-", "tip", "tip"], 4),
+    # two frames lost: dropped; the next sightings start over as a new contact
+    (1, 0.75, ["tip", "-", "-", "tip", "tip"], 5),
+    # no decay: the evidence is kept whole across the gap
+    (1, 1.0, ["tip", "-", "tip"], 3),
+    # no gap: dropped at once, the evidence starts over
+    (0, 0.75, ["tip", "-", "tip", "tip"], 4),
+    (0, 0.75, ["tip", "-", "tip", "-", "tip"], None),
+])
+def test_a_pending_contact_survives_a_gap_with_fading_evidence(
+        gap: int, decay: float, frames: list[str], down_at: int | None) -> None:
+    tr = Tracker(TrackingConfig(down_frames=2, pending_gap_frames=gap, pending_decay=decay),
+                 scale_mm_per_px=1.0)
+    out = run(tr, [_tip(300) if f == "tip" else pts() for f in frames])
+    downs = [i + 1 for i, f in enumerate(out) if any(s == "down" for _, s in f)]
+    assert downs == ([] if down_at is None else [down_at])
+    # held through the gap, it keeps its place: the contact that goes down is id 1
+    if down_at is not None:
+        assert out[down_at - 1] == [(1, "down")]
+
+
+def test_a_pending_contact_held_in_a_gap_reports_nothing() -> None:
+    tr = Tracker(TrackingConfig(down_frames=2, pending_gap_frames=1), scale_mm_per_px=1.0)
+    assert run(tr, [_tip(300), pts()]) == [[], []]
+    assert len(tr.tracks) == 1 and not tr.tracks[0].active
+    assert run(tr, [pts()]) == [[]] and tr.tracks == []
+
+
+def _finger(scale: float, *tips: tuple[float, float, float, float]) -> TouchPoints:
+    """Fingertip-sized points (300 mm^2) at (x, y) px with their hand at (hx, hy) px."""
+    a = np.array(tips, np.float64)
+    n = len(a)
+    return TouchPoints(a[:, :2], np.full(n, 5.0), np.full(n, round(300 / scale**2)), a[:, 2:4],
+                       None,
+                       np.full(n, 10), np.full(n, 35.0), np.full(n, 25.0))
+
+
+@pytest.mark.parametrize(("scale", "other", "behind"), [
+    # the finger points along +x from its hand at x = 40 to its tip at x = 100 (mm)
+    ((1.0), (60.0, 100.0), True),     # 40 mm back on the axis: the finger's flank
+    ((1.0), (60.0, 109.0), True),     # 9 mm off the axis: within 8 mm + 2 px
+    ((1.0), (60.0, 111.0), False),    # 11 mm off: a finger beside it
+    ((1.0), (95.0, 100.0), False),    # 5 mm back: the tip's own rim, not behind it
+    ((1.0), (60.0, 120.0), False),    # 20 mm beside: fingers side by side
+    ((5.0), (60.0, 117.0), True),     # at 5 mm/px the 2 px allow 18 mm
+    ((5.0), (60.0, 119.0), False),
+])
+def test_a_point_behind_a_tip_on_its_finger_gives_no_evidence(
+        scale: float, other: tuple[float, float], behind: bool) -> None:
+    s = 1.0 / scale  # positions above are in mm
+    tip = (100.0 * s, 100.0 * s, 40.0 * s, 100.0 * s)
+    ox, oy = other
+    # the other point's own hand lies toward the side it came from
+    oth = (ox * s, oy * s, ox * s - 10.0 * s, oy * s)
+    frames = [_finger(scale, tip, oth)] * 4
+    tr = Tracker(TrackingConfig(down_frames=2), scale_mm_per_px=scale)
+    downs = [tr_.track.xy_px for f in frames for tr_ in tr.update(f) if tr_.state == "down"]
+    # the tip always goes down; the other point only when it is not behind it on its axis
+    assert any(np.allclose(d, tip[:2]) for d in downs)
+    assert any(np.allclose(d, oth[:2]) for d in downs) == (not behind)
+    off = Tracker(TrackingConfig(down_frames=2, behind_lat_mm=0.0), scale_mm_per_px=scale)
+    downs = [u.track.xy_px for f in frames for u in off.update(f) if u.state == "down"]
+    assert any(np.allclose(d, oth[:2]) for d in downs)
+
+
+def test_a_tip_too_high_to_go_down_makes_nothing_behind_it() -> None:
+    """Only a point low enough to start a contact has a finger behind it: a hovering tip (30 mm)
+    takes nothing from the point on its axis."""
+    a = np.array([[100.0, 100.0], [60.0, 100.0]])
+    p = TouchPoints(a, np.array([30.0, 5.0]), np.array([300, 300]),
+                    np.array([[40.0, 100.0], [50.0, 100.0]]), None, np.array([10, 10]),
+                    np.array([35.0, 35.0]), np.array([25.0, 25.0]))
+    tr = Tracker(TrackingConfig(down_frames=2), scale_mm_per_px=1.0)
+    downs = [u.track.xy_px for _ in range(3) for u in tr.update(p) if u.state == "down"]
+    assert len(downs) == 1 and np.allclose(downs[0], (60.0, 100.0))
+
+
+def test_behind_and_gap_settings_are_validated() -> None:
+    from depthtouch.errors import ConfigError
+    for kw in ({"behind_lat_mm": -1.0}, {"behind_lat_px": 11.0}, {"pending_gap_frames": -1},
+               {"pending_decay": 1.5}):
+        with pytest.raises(ConfigError, match="tracking"):
+            TrackingConfig(**kw).validate()  # type: ignore[arg-type]
 
 
 def test_evidence_by_size_is_off_without_a_scale_or_at_weight_1() -> None:

@@ -5,9 +5,11 @@ on their distance, gated (mm when the surface scale is known, px otherwise): con
 first, then pending ones on the points left. Fingertips side by side whose regions merged into one
 point (a region about twice a tip's area) keep their ids and move with that point, each at its
 place in the pair; a contact hidden in a neighbour's region is held. A new contact goes
-``down`` once its evidence reaches ``down_frames``: consecutive frames, each counting 1 when its
-region has a fingertip's area in mm² and ``weak_evidence`` otherwise (a speck at a finger's
-edge, a hovering finger or a forearm's edge lying in the band); a contact missing for
+``down`` once its evidence reaches ``down_frames``: frames, each counting 1 when its region has
+a fingertip's area in mm² and ``weak_evidence`` otherwise (a speck at a finger's edge, a
+hovering finger or a forearm's edge lying in the band), nothing when it lies behind another
+point on that point's finger (one finger, one tip); a pending contact survives
+``pending_gap_frames`` frames without a point, its evidence fading; a contact missing for
 ``up_frames`` consecutive frames goes ``up`` with its last position (it is reported as ``move``
 at that position during the grace frames). Height hysteresis: a tip must come below
 ``touch_on_mm`` to start a contact, and a contact lasts while its tip stays below
@@ -31,6 +33,8 @@ _BIG = 1e9
 # cost matrices up to this many entries are built with floats, larger ones with arrays (the
 # break-even on one core: about 10 tracks x 10 points when they are close together)
 _PY_COST_MAX = 100
+# a point this far behind a fingertip on its axis is still on that finger (a finger's length)
+_BEHIND_MAX_MM = 150.0
 
 XY = tuple[float, float]
 
@@ -88,6 +92,30 @@ def _assign(
     ri, ci = linear_sum_assignment(np.array(sub))
     return {rows[a]: cols[b] for a, b in zip(ri.tolist(), ci.tolist(), strict=True)
             if sub[a][b] < _BIG}
+
+
+def _behind(xy: list[list[float]], hand: list[list[float]], tips: list[int], scale: float,
+            lat_mm: float, min_mm: float) -> list[int]:
+    """The points that lie on the finger of one of the ``tips``, behind it: within ``lat_mm``
+    of its axis (the line from its hand to it) and ``min_mm`` to ``_BEHIND_MAX_MM`` back
+    toward its hand. (``xy``, ``hand``: image px; ``scale``: mm per px.)"""
+    axes = []
+    for q in tips:
+        (qx, qy), (hx, hy) = xy[q], hand[q]
+        nn = math.hypot(qx - hx, qy - hy)
+        if nn > 1e-6:
+            axes.append((q, qx, qy, (qx - hx) / nn, (qy - hy) / nn))
+    out = []
+    for j, (px, py) in enumerate(xy):
+        for q, qx, qy, ux, uy in axes:
+            if q == j:
+                continue
+            dx, dy = (px - qx) * scale, (py - qy) * scale
+            along = dx * ux + dy * uy
+            if -_BEHIND_MAX_MM < along < -min_mm and abs(dx * uy - dy * ux) < lat_mm:
+                out.append(j)
+                break
+    return out
 
 
 class TrackUpdate(NamedTuple):
@@ -187,8 +215,7 @@ class Tracker:
             for i in members:
                 shift[i] = (k, step)
         down_frames = self.config.down_frames
-        weight = self._evidence_weights(area, points.attach_px, points.attach_height_mm,
-                                        points.back_spread_mm)
+        weight = self._evidence_weights(points, ok_new)
         for i, t in enumerate(tracks):
             j = matched_t.get(i)
             if i in shift:
@@ -242,7 +269,13 @@ class Tracker:
                 else:
                     out.append(TrackUpdate(t, "move", False))
                     keep.append(t)
-            # an unmatched pending track is dropped (it never went down)
+            elif t.missing < self.config.pending_gap_frames:
+                # a pending contact unseen this frame (a tip at the band's edge at range flickers
+                # in and out of it): kept, its evidence fading, for a frame or two
+                t.missing += 1
+                t.evidence *= self.config.pending_decay
+                keep.append(t)
+            # otherwise an unmatched pending track is dropped (it never went down)
         for j in range(n_p):
             if j in used or not ok_new[j]:
                 continue
@@ -255,9 +288,7 @@ class Tracker:
         self.tracks = keep
         return out
 
-    def _evidence_weights(self, area_px: list[int], attach_px: np.ndarray | None = None,
-                          attach_height_mm: np.ndarray | None = None,
-                          back_spread_mm: np.ndarray | None = None) -> list[float]:
+    def _evidence_weights(self, points: TouchPoints, ok_new: list[bool]) -> list[float]:
         """How much one frame of each point counts toward ``down`` (see TrackingConfig).
 
         A region of a fingertip's size (``tip_area_mm2`` range) counts a whole frame; a smaller
@@ -269,12 +300,17 @@ class Tracker:
         pixels lie higher than ``step_max_mm`` (a finger rises from the band gradually; mixed
         pixels at the side of a raised hand jump), and so does one with level heights behind it
         (``flat_max_mm``: the top of a held book, the flank of a forearm; a finger rises and
-        is narrow). Without a scale (no intrinsics) every frame counts whole.
+        is narrow), and so does a point on the axis of another point low enough to go down,
+        behind it (``behind_lat_mm``: a finger has one tip; what lies behind it on its axis is
+        the finger's flank). Without a scale (no intrinsics) every frame counts whole.
         """
         scale = self.scale_mm_per_px
+        area_px = points.area_px.tolist()
         n = len(area_px)
         if scale is None:
             return [1.0] * n
+        attach_px, attach_height_mm = points.attach_px, points.attach_height_mm
+        back_spread_mm = points.back_spread_mm
         weak = self.config.weak_evidence
         if weak >= 1.0:
             w = [1.0] * n
@@ -296,6 +332,12 @@ class Tracker:
         flat = self.config.flat_max_mm
         if back_spread_mm is not None and flat > 0:
             w = [0.0 if a < flat else v for v, a in zip(w, back_spread_mm.tolist(), strict=True)]
+        lat = self.config.behind_lat_mm
+        if lat > 0 and n > 1 and points.hand_xy_px is not None:
+            tips = [j for j in range(n) if ok_new[j]]
+            for j in _behind(points.xy_px.tolist(), points.hand_xy_px.tolist(), tips, scale,
+                             lat + self.config.behind_lat_px * scale, self.config.behind_min_mm):
+                w[j] = 0.0
         return w
 
     def _cost(self, pos: list[XY], ok_cont: list[bool], ok_new: list[bool]) -> list[list[float]]:
