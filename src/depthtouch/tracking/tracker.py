@@ -271,7 +271,7 @@ class Tracker:
                     keep.append(t)
             elif t.missing < self.config.pending_gap_frames:
                 # a pending contact unseen this frame (a tip at the band's edge at range flickers
-                # in and out of it): kept, its evidence fading, for a frame or two
+                # in and out of it): kept, its evidence fading, for pending_gap_frames frames
                 t.missing += 1
                 t.evidence *= self.config.pending_decay
                 keep.append(t)
