@@ -220,6 +220,16 @@ def learn_surface(
     return model.with_statistic(cfg.statistic)
 
 
+def _ray_slopes(K: np.ndarray, shape: tuple[int, ...]) -> tuple[np.ndarray, np.ndarray]:
+    """Per pixel (H, W), x / z and y / z of its ray through the camera centre (float32)."""
+    h, w = shape[:2]
+    fx, fy, cx, cy = K[0, 0], K[1, 1], K[0, 2], K[1, 2]
+    u = (np.arange(w, dtype=np.float32) - cx) / fx
+    v = (np.arange(h, dtype=np.float32) - cy) / fy
+    uu, vv = np.meshgrid(u, v)
+    return uu, vv
+
+
 def surface_normals(surface: SurfaceModel) -> np.ndarray | None:
     """Per pixel, the surface's unit normal in camera coordinates, pointing toward the camera,
     float32 (H, W, 3); None without K. Zero where the surface is unusable.
@@ -231,11 +241,7 @@ def surface_normals(surface: SurfaceModel) -> np.ndarray | None:
         return None
     import cv2
 
-    h, w = surface.depth_mm.shape
-    fx, fy, cx, cy = surface.K[0, 0], surface.K[1, 1], surface.K[0, 2], surface.K[1, 2]
-    u = (np.arange(w, dtype=np.float32) - cx) / fx
-    v = (np.arange(h, dtype=np.float32) - cy) / fy
-    uu, vv = np.meshgrid(u, v)
+    uu, vv = _ray_slopes(surface.K, surface.depth_mm.shape)
     z = surface.depth_mm
     zs = cv2.GaussianBlur(np.where(surface.valid, z, 0).astype(np.float32), (0, 0), 3.0)
     ws = cv2.GaussianBlur(surface.valid.astype(np.float32), (0, 0), 3.0)
@@ -258,14 +264,10 @@ def height_factor(surface: SurfaceModel, normals: np.ndarray | None = None) -> n
     normal. Without K the factor is 1 (heights are depth differences). ``normals``: those of
     :func:`surface_normals`, when the caller has them already.
     """
-    h, w = surface.depth_mm.shape
     n = surface_normals(surface) if normals is None else normals
     if surface.K is None or n is None:
-        return np.ones((h, w), np.float32)
-    fx, fy, cx, cy = surface.K[0, 0], surface.K[1, 1], surface.K[0, 2], surface.K[1, 2]
-    u = (np.arange(w, dtype=np.float32) - cx) / fx
-    v = (np.arange(h, dtype=np.float32) - cy) / fy
-    uu, vv = np.meshgrid(u, v)
+        return np.ones(surface.depth_mm.shape, np.float32)
+    uu, vv = _ray_slopes(surface.K, surface.depth_mm.shape)
     ray = np.stack([uu, vv, np.ones_like(uu)], axis=-1)
     ray /= np.linalg.norm(ray, axis=-1, keepdims=True)
     cos = np.abs((n * ray).sum(-1))

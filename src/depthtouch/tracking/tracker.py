@@ -94,7 +94,7 @@ def _assign(
             if sub[a][b] < _BIG}
 
 
-def _behind(xy: list[list[float]], hand: list[list[float]], tips: list[int], scale: float,
+def _behind(xy: list[XY], hand: list[list[float]], tips: list[int], scale: float,
             lat_mm: float, min_mm: float) -> list[int]:
     """The points that lie on the finger of one of the ``tips``, behind it: within ``lat_mm``
     of its axis (the line from its hand to it) and ``min_mm`` to ``_BEHIND_MAX_MM`` back
@@ -215,7 +215,7 @@ class Tracker:
             for i in members:
                 shift[i] = (k, step)
         down_frames = self.config.down_frames
-        weight = self._evidence_weights(points, ok_new)
+        weight = self._evidence_weights(points, xy, area, ok_new)
         for i, t in enumerate(tracks):
             j = matched_t.get(i)
             if i in shift:
@@ -288,7 +288,8 @@ class Tracker:
         self.tracks = keep
         return out
 
-    def _evidence_weights(self, points: TouchPoints, ok_new: list[bool]) -> list[float]:
+    def _evidence_weights(self, points: TouchPoints, xy: list[XY], area_px: list[int],
+                          ok_new: list[bool]) -> list[float]:
         """How much one frame of each point counts toward ``down`` (see TrackingConfig).
 
         A region of a fingertip's size (``tip_area_mm2`` range) counts a whole frame; a smaller
@@ -305,7 +306,6 @@ class Tracker:
         the finger's flank). Without a scale (no intrinsics) every frame counts whole.
         """
         scale = self.scale_mm_per_px
-        area_px = points.area_px.tolist()
         n = len(area_px)
         if scale is None:
             return [1.0] * n
@@ -335,7 +335,7 @@ class Tracker:
         lat = self.config.behind_lat_mm
         if lat > 0 and n > 1 and points.hand_xy_px is not None:
             tips = [j for j in range(n) if ok_new[j]]
-            for j in _behind(points.xy_px.tolist(), points.hand_xy_px.tolist(), tips, scale,
+            for j in _behind(xy, points.hand_xy_px.tolist(), tips, scale,
                              lat + self.config.behind_lat_px * scale, self.config.behind_min_mm):
                 w[j] = 0.0
         return w
