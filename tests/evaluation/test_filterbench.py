@@ -12,6 +12,7 @@ from depthtouch.cli import main
 from depthtouch.errors import ConfigError
 from depthtouch.evaluation.filterbench import (
     KINDS,
+    TUNE_GRIDS,
     TUNE_SEED,
     TouchPath,
     bench_filters,
@@ -252,9 +253,10 @@ def test_cli_bench_filters_bad_figure_path(capsys, tmp_path):
 @pytest.mark.slow
 def test_tuning_reproduces_the_shipped_defaults():
     """The shipped parameters are what the tuner picks on the tuning seeds (one-frame budget),
-    except the adaptive filter's, chosen on full depth frames (docs/filters.md)."""
+    except the adaptive filter's, chosen on full depth frames, and adaptive_euro, which has no
+    grid here: it was chosen on the hard suite (docs/filters.md)."""
     paths = simulate_paths(TUNE_SEED, fps_hz=30.0, per_kind=8)
     tuned = tune_filters(paths, max_added_lag_ms=1000.0 / 30.0)
-    shipped = {name: make_filter(name).params for name in FILTERS}
+    shipped = {name: make_filter(name).params for name in FILTERS if name in TUNE_GRIDS}
     shipped["adaptive"] = {"min_cutoff_hz": 0.25, "half_weight_mm": 12.0}
     assert tuned == shipped
