@@ -368,8 +368,7 @@ class AdaptiveEuroFilter(FilterBase):
         lo, hi = prm["land_blend_sigmas"], prm["land_sigmas"]
         a = np.clip((z - lo) / max(hi - lo, 1e-9), 0.0, 1.0)
         land = land & (seen <= prm["land_frames"]) & (z <= hi)
-        self_col = self._COLS["land"]
-        s[:, self_col] = land[:, None]
+        s[:, self._COLS["land"]] = land[:, None]
         return np.where(land[:, None], mean + a[:, None] * (e - mean), e)
 
     def _lock(self, s: np.ndarray, xy: np.ndarray, e: np.ndarray, dt_s: np.ndarray,
@@ -382,8 +381,8 @@ class AdaptiveEuroFilter(FilterBase):
         # the sums' horizon (the landing reads them too)
         frames = max(lock_frames, prm["land_frames"])
         # stillness: the weighted least-squares line through the measurements (weights
-        # decaying by 1 - 1/lock_frames per frame; sums kept about the current time, so old
-        # times shift by -dt) is slower than lock_mm_s
+        # decaying by 1 - 1/frames per frame; sums kept about the current time, so old times
+        # shift by -dt) is slower than lock_mm_s
         q0, qt, qtt = s[:, c["q0"]][:, 0], s[:, c["qt"]][:, 0], s[:, c["qtt"]][:, 0]
         qx, qtx = s[:, c["qx"]], s[:, c["qtx"]]
         keep = 1.0 - 1.0 / frames
