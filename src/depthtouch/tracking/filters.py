@@ -237,10 +237,10 @@ class AdaptiveEuroFilter(FilterBase):
       least that many) moves slower than ``lock_mm_s`` (default 5 mm/s). Noise cannot fake
       this: the line's slope is known to about ±1-2 mm/s, so a slow drag (10 mm/s and more)
       never locks and passes exactly as with the lock off.
-    - The lock starts at the 1€ stage's output (no jump), with a radius of max(``lock_mm``,
-      ``lock_sigmas``·σ) (defaults 4 mm, 3). Its mean then runs over the last
-      ``lock_mean_frames`` (default 30) measurements that lie within twice the radius: a far
-      outlier moves neither the output nor the mean.
+    - The lock starts at the output so far (the 1€ stage's, or the landing's: no jump), with
+      a radius of max(``lock_mm``, ``lock_sigmas``·σ) (defaults 4 mm, 3). Its mean then runs
+      over the last ``lock_mean_frames`` (default 30) measurements that lie within twice the
+      radius: a far outlier moves neither the output nor the mean.
     - It ends when the median of the last three measurements leaves the radius: a one-frame
       jump never ends it, a real move ends it on its second frame (then the 1€ stage, which
       ran all along, is the output again; it closes the gap at once).
@@ -412,12 +412,13 @@ class AdaptiveEuroFilter(FilterBase):
         near = stay & (np.sum((xy - m) ** 2, axis=1) <= 4.0 * r2)
         n = np.where(near, np.minimum(n + 1.0, prm["lock_mean_frames"]), n)
         m = np.where(near[:, None], m + (xy - m) / np.maximum(n, 1.0)[:, None], m)
-        # a new lock starts from the 1€ stage's output (no jump), counted as lock_frames
-        # frames of mean (at most lock_mean_frames); its radius follows the touch's noise
+        # a new lock starts from the output so far (the 1€ stage's, or the landing's mean: no
+        # jump), counted as lock_frames frames of mean (at most lock_mean_frames); its radius
+        # follows the touch's noise
         enter = (n <= 0) & still
         m = np.where(enter[:, None], e, m)
         r2 = np.where(enter, np.maximum(prm["lock_mm"], prm["lock_sigmas"] * sd) ** 2, r2)
-        n = np.where(enter, min(frames, prm["lock_mean_frames"]), np.where(stay, n, 0.0))
+        n = np.where(enter, min(lock_frames, prm["lock_mean_frames"]), np.where(stay, n, 0.0))
         s[:, c["m"]] = m
         s[:, c["n"]], s[:, c["r2"]] = n[:, None], r2[:, None]
         return np.where((n > 0)[:, None], m, e)
