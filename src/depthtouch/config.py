@@ -213,6 +213,21 @@ class TrackingConfig:
         12 mm + 0 px, 14 at 8 mm + 1.5 px, 12 at 8 mm + 2 px, 11 at 20 mm + 0 px, which lost a
         contact (ToF at 1.3 m); no change on the default suite. behind_lat_mm 0 turns it off
         (ranges [0, 100] mm, [0, 10] px, [0, 100] mm).
+    steep_evidence, steep_*: a finger that stands almost upright hides the pad that touches under
+        its own tip, so what the camera sees is the top of the tip, a finger's diameter above
+        the surface, with the hand right behind it: it fails touch_on_mm, step_max_mm and
+        flat_max_mm, which all assume a finger at a slant. A point whose region has the area of
+        a steep tip's top (steep_area_min_mm2..steep_area_max_mm2, default 60-150 mm²), whose
+        top lies steep_top_min_mm..steep_top_max_mm above the surface (default 10-26 mm), whose
+        hand lies within steep_hand_mm of it (default 8 mm) and whose attached hand pixels lie
+        steep_step_min_mm..steep_step_max_mm high (default 75-88 mm: the finger rising to its
+        knuckles) may start a contact, and counts steep_evidence per frame (default 0.34: six
+        frames in a row before down). Chosen on the hard suite's tune half: 1 more contact of
+        82 (a resting forearm's steep finger), false touches unchanged; an attached height up
+        to 92 or from 70 mm, or a weight of 0.5, each added a false touch (ToF at 1.3-2 m,
+        fingers on their way down); a top up to 22 mm lost the contact; no change on the
+        default suite. steep_evidence 0 turns it off (ranges [0, 1], areas [0, 10000] mm²,
+        heights [0, 200] mm, steps [0, 10000] mm).
     pending_gap_frames: a contact not yet down whose point is missing for up to this many
         frames is kept, its evidence multiplied by pending_decay each such frame, instead of
         being dropped (a tip at range flickers at the band's edge, a fast drag at range is seen
@@ -239,6 +254,14 @@ class TrackingConfig:
     behind_min_mm: float = 10.0
     pending_gap_frames: int = 1
     pending_decay: float = 0.75
+    steep_evidence: float = 0.34
+    steep_area_min_mm2: float = 60.0
+    steep_area_max_mm2: float = 150.0
+    steep_top_min_mm: float = 10.0
+    steep_top_max_mm: float = 26.0
+    steep_hand_mm: float = 8.0
+    steep_step_min_mm: float = 75.0
+    steep_step_max_mm: float = 88.0
 
     def validate(self) -> None:
         _range("tracking.gate_mm", self.gate_mm, 0.0, 1000.0, lo_open=True)
@@ -259,6 +282,16 @@ class TrackingConfig:
         _range("tracking.behind_min_mm", self.behind_min_mm, 0.0, 100.0)
         _range("tracking.pending_gap_frames", self.pending_gap_frames, 0, 10)
         _range("tracking.pending_decay", self.pending_decay, 0.0, 1.0)
+        _range("tracking.steep_evidence", self.steep_evidence, 0.0, 1.0)
+        _range("tracking.steep_area_min_mm2", self.steep_area_min_mm2, 0.0, 10000.0)
+        _range("tracking.steep_area_max_mm2", self.steep_area_max_mm2, self.steep_area_min_mm2,
+               10000.0)
+        _range("tracking.steep_top_min_mm", self.steep_top_min_mm, 0.0, 200.0)
+        _range("tracking.steep_top_max_mm", self.steep_top_max_mm, self.steep_top_min_mm, 200.0)
+        _range("tracking.steep_hand_mm", self.steep_hand_mm, 0.0, 200.0)
+        _range("tracking.steep_step_min_mm", self.steep_step_min_mm, 0.0, 10000.0)
+        _range("tracking.steep_step_max_mm", self.steep_step_max_mm, self.steep_step_min_mm,
+               10000.0)
 
 
 @dataclass(frozen=True)

@@ -449,3 +449,32 @@ def test_a_region_with_level_heights_behind_it_gives_no_evidence(spread_mm: floa
     assert ("down" in [s for f in run(tr, [tip] * 8) for _, s in f]) == goes_down
     off = Tracker(TrackingConfig(down_frames=2, flat_max_mm=0.0), scale_mm_per_px=1.0)
     assert "down" in [s for f in run(off, [tip] * 8) for _, s in f]
+
+
+def _steep_tip(h: float = 15.0, area: int = 100, hand_mm: float = 4.0,
+               step_mm: float = 83.0) -> TouchPoints:
+    """The top of a finger standing almost upright (scale 1 mm/px): a compact region a finger's
+    diameter above the surface, the hand right behind it, level heights behind it."""
+    return TouchPoints(np.array([[100.0, 100.0]]), np.array([h]), np.array([area]),
+                       np.array([[100.0, 100.0 + hand_mm]]), None, np.array([10]),
+                       np.array([step_mm]), np.array([5.0]))
+
+
+def test_a_steep_finger_goes_down_after_six_frames() -> None:
+    """Its top is 15 mm up (above touch_on_mm), its hand 83 mm (above step_max_mm) and level
+    behind it (under flat_max_mm): it counts steep_evidence (0.34) a frame, down on the 6th."""
+    tr = Tracker(TrackingConfig(), scale_mm_per_px=1.0)
+    states = [[s for _, s in f] for f in run(tr, [_steep_tip()] * 8)]
+    assert states[:5] == [[]] * 5
+    assert states[5] == ["down"]
+    off = Tracker(TrackingConfig(steep_evidence=0.0), scale_mm_per_px=1.0)
+    assert not any(run(off, [_steep_tip()] * 12))
+
+
+@pytest.mark.parametrize("kw", [dict(h=30.0), dict(h=8.0), dict(area=300), dict(area=40),
+                                dict(hand_mm=12.0), dict(step_mm=95.0)])
+def test_what_is_not_a_steep_finger_never_goes_down(kw: dict[str, float]) -> None:
+    """Too high or too low a top, too large or small a region, a hand too far behind it, or
+    an attached height beyond a finger's knuckles: the ordinary tests apply (and refuse it)."""
+    tr = Tracker(TrackingConfig(), scale_mm_per_px=1.0)
+    assert not any(run(tr, [_steep_tip(**kw)] * 12))

@@ -8,7 +8,8 @@ place in the pair; a contact hidden in a neighbour's region is held. A new conta
 ``down`` once its evidence reaches ``down_frames``: frames, each counting 1 when its region has
 a fingertip's area in mm² and ``weak_evidence`` otherwise (a speck at a finger's edge, a
 hovering finger or a forearm's edge lying in the band), nothing when it lies behind another
-point on that point's finger (one finger, one tip); a pending contact survives
+point on that point's finger (one finger, one tip), and ``steep_evidence`` when it looks like
+the top of a finger standing almost upright (see TrackingConfig); a pending contact survives
 ``pending_gap_frames`` frames without a point, its evidence fading; a contact missing for
 ``up_frames`` consecutive frames goes ``up`` with its last position (it is reported as ``move``
 at that position during the grace frames). Height hysteresis: a tip must come below
@@ -118,6 +119,26 @@ def _behind(xy: list[XY], hand: list[list[float]], tips: list[int], scale: float
     return out
 
 
+def _steep(points: TouchPoints, area_px: list[int], scale: float | None,
+           cfg: TrackingConfig) -> list[bool]:
+    """Which points look like the top of a steep finger's tip (TrackingConfig.steep_*): the
+    area, the height of the top, the hand right behind it at the height of a finger rising to
+    its knuckles. None without a scale or the attachment's height."""
+    n = len(area_px)
+    ah, hand = points.attach_height_mm, points.hand_xy_px
+    if scale is None or cfg.steep_evidence <= 0 or ah is None or hand is None:
+        return [False] * n
+    a0, a1 = cfg.steep_area_min_mm2 / (scale * scale), cfg.steep_area_max_mm2 / (scale * scale)
+    near = cfg.steep_hand_mm / scale
+    out = []
+    for (x, y), (hx, hy), a, h, st in zip(points.xy_px.tolist(), hand.tolist(), area_px,
+                                          points.height_mm.tolist(), ah.tolist(), strict=True):
+        out.append(a0 <= a <= a1 and cfg.steep_top_min_mm <= h <= cfg.steep_top_max_mm
+                   and cfg.steep_step_min_mm < st <= cfg.steep_step_max_mm
+                   and math.hypot(x - hx, y - hy) < near)
+    return out
+
+
 class TrackUpdate(NamedTuple):
     """What happened to a track this frame; ``measured`` is False during grace and on up.
 
@@ -184,7 +205,8 @@ class Tracker:
         # (an unknown height, NaN, compares False: never a touch)
         off, on = self.touch.touch_off_mm, self.touch.touch_on_mm
         ok_cont = [v <= off for v in h]
-        ok_new = [v <= on for v in h]
+        steep = _steep(points, area, self.scale_mm_per_px, self.config)
+        ok_new = [v <= on or s for v, s in zip(h, steep, strict=True)]
         matched_t: dict[int, int] = {}
         groups: dict[int, list[int]] = {}
         if n_t and n_p:
@@ -215,7 +237,7 @@ class Tracker:
             for i in members:
                 shift[i] = (k, step)
         down_frames = self.config.down_frames
-        weight = self._evidence_weights(points, xy, area, ok_new)
+        weight = self._evidence_weights(points, xy, area, ok_new, steep)
         for i, t in enumerate(tracks):
             j = matched_t.get(i)
             if i in shift:
@@ -289,7 +311,7 @@ class Tracker:
         return out
 
     def _evidence_weights(self, points: TouchPoints, xy: list[XY], area_px: list[int],
-                          ok_new: list[bool]) -> list[float]:
+                          ok_new: list[bool], steep: list[bool]) -> list[float]:
         """How much one frame of each point counts toward ``down`` (see TrackingConfig).
 
         A region of a fingertip's size (``tip_area_mm2`` range) counts a whole frame; a smaller
@@ -303,7 +325,9 @@ class Tracker:
         (``flat_max_mm``: the top of a held book, the flank of a forearm; a finger rises and
         is narrow), and so does a point on the axis of another point low enough to go down,
         behind it (``behind_lat_mm``: a finger has one tip; what lies behind it on its axis is
-        the finger's flank). Without a scale (no intrinsics) every frame counts whole.
+        the finger's flank). The top of a steep finger (``steep``) counts ``steep_evidence``
+        instead of the size test's weight and is exempt from the step and flat tests. Without a
+        scale (no intrinsics) every frame counts whole.
         """
         scale = self.scale_mm_per_px
         n = len(area_px)
@@ -311,13 +335,15 @@ class Tracker:
             return [1.0] * n
         attach_px, attach_height_mm = points.attach_px, points.attach_height_mm
         back_spread_mm = points.back_spread_mm
-        weak = self.config.weak_evidence
+        weak, steep_w = self.config.weak_evidence, self.config.steep_evidence
         if weak >= 1.0:
             w = [1.0] * n
         else:
             lo, hi = self.config.tip_area_min_mm2, self.config.tip_area_max_mm2
             px_mm2 = scale * scale
             w = [1.0 if lo <= a * px_mm2 <= hi else weak for a in area_px]
+        if any(steep):
+            w = [steep_w if s else v for v, s in zip(w, steep, strict=True)]
         # the attachment counts the hand pixels within 2 px of the region: an attachment w mm
         # long gives up to 2 (w / scale + 4) of them (the ring is 2 px deep and reaches 2 px
         # past either end)
@@ -327,11 +353,12 @@ class Tracker:
         step = self.config.step_max_mm
         if attach_height_mm is not None and step > 0:
             # (an unknown height, NaN, compares False: no evidence taken away)
-            w = [0.0 if a > step else v
-                 for v, a in zip(w, attach_height_mm.tolist(), strict=True)]
+            w = [0.0 if a > step and not s else v
+                 for v, a, s in zip(w, attach_height_mm.tolist(), steep, strict=True)]
         flat = self.config.flat_max_mm
         if back_spread_mm is not None and flat > 0:
-            w = [0.0 if a < flat else v for v, a in zip(w, back_spread_mm.tolist(), strict=True)]
+            w = [0.0 if a < flat and not s else v
+                 for v, a, s in zip(w, back_spread_mm.tolist(), steep, strict=True)]
         lat = self.config.behind_lat_mm
         if lat > 0 and n > 1 and points.hand_xy_px is not None:
             tips = [j for j in range(n) if ok_new[j]]
