@@ -239,7 +239,8 @@ class Pipeline:
         filtered: list[list[float]] = []  # mm, in the order of the measured updates
         if measured:
             ids = np.array([t.id for t in measured], np.int64)
-            xy = np.array([c * scale for t in measured for c in t.xy_px], np.float64).reshape(-1, 2)
+            xy = np.array([c * scale for t in measured for c in t.report_px],
+                          np.float64).reshape(-1, 2)
             filtered = self._filter.update(ids, xy, frame.timestamp_s).tolist()
         ended = [u.track.id for u in updates if u.state == "up"]
         if ended:
@@ -255,7 +256,7 @@ class Pipeline:
                 x_mm, y_mm = next(filtered_it)
                 xy_px = (x_mm / scale, y_mm / scale)
             else:  # grace frames and up repeat the last filtered position
-                xy_px = reported.get(t.id, t.xy_px)
+                xy_px = reported.get(t.id, t.report_px)
             if u.state == "up":
                 reported.pop(t.id, None)
                 active.discard(t.id)

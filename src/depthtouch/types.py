@@ -100,6 +100,8 @@ class TouchPoints:
     back_spread_mm: (N,) spread of the heights behind the tip, along and beside the finger
         (NaN when unknown; a finger rises behind its tip, a flat object's top is level); None
         means unknown.
+    offset_px: (N, 2) what to add to xy_px for the reported contact (a correction of the
+        tip's position that tracking does not need: its matching uses xy_px); None means none.
     """
 
     xy_px: np.ndarray
@@ -110,6 +112,7 @@ class TouchPoints:
     attach_px: np.ndarray | None = None
     attach_height_mm: np.ndarray | None = None
     back_spread_mm: np.ndarray | None = None
+    offset_px: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         n = self.xy_px.shape[0] if self.xy_px.ndim == 2 else -1
@@ -125,6 +128,8 @@ class TouchPoints:
             _check_shape("TouchPoints.attach_height_mm", self.attach_height_mm, (n,))
         if self.back_spread_mm is not None:
             _check_shape("TouchPoints.back_spread_mm", self.back_spread_mm, (n,))
+        if self.offset_px is not None:
+            _check_shape("TouchPoints.offset_px", self.offset_px, (n, 2))
 
     @classmethod
     def empty(cls) -> TouchPoints:
@@ -138,9 +143,10 @@ class TouchPoints:
         attach = None if self.attach_px is None else self.attach_px[index]
         att_h = None if self.attach_height_mm is None else self.attach_height_mm[index]
         back = None if self.back_spread_mm is None else self.back_spread_mm[index]
+        off = None if self.offset_px is None else self.offset_px[index]
         return TouchPoints(
             self.xy_px[index], self.height_mm[index], self.area_px[index], self.hand_xy_px[index],
-            border, attach, att_h, back,
+            border, attach, att_h, back, off,
         )
 
 

@@ -251,3 +251,44 @@ def test_the_faint_rim_around_a_tip_lowers_its_height_but_does_not_move_its_poin
     assert x2 > x0 + 0.3
     # the centre of the rounded tip (x = 17), within a pixel
     assert x0 == pytest.approx(17.0, abs=1.0) and y0 == pytest.approx(10.0, abs=0.3)
+
+
+def test_a_higher_tl_moves_the_reported_contact_forward_along_the_finger(bounds):
+    """Tl 5 mm above its floor, 0.4 mm per mm: the contact moves 2 mm away from the hand; at
+    the floor, without a hand direction, or with the shift off, it stays."""
+    from dataclasses import replace
+
+    from depthtouch.touch.points import tl_shift_px
+
+    high = replace(bounds, tl_mm=np.full_like(bounds.tl_mm, 9.0), tl_floor_mm=4.0)
+    xy = np.array([[320.0, 240.0], [100.0, 100.0]])
+    hand = np.array([[300.0, 240.0], [100.0, 130.0]])  # hands behind: to the left, below
+    got = tl_shift_px(xy, hand, high, 0.4)
+    step = 2.0 / high.mm_per_px
+    np.testing.assert_allclose(got, [[320.0 + step, 240.0], [100.0, 100.0 - step]])
+    floor = replace(bounds, tl_mm=np.full_like(bounds.tl_mm, 4.0), tl_floor_mm=4.0)
+    np.testing.assert_array_equal(tl_shift_px(xy, hand, floor, 0.4), xy)
+    np.testing.assert_array_equal(tl_shift_px(xy, np.full_like(hand, np.nan), high, 0.4), xy)
+    np.testing.assert_array_equal(tl_shift_px(xy, hand, high, 0.0), xy)
+
+
+def test_the_shift_is_an_offset_tracking_does_not_use(bounds):
+    """find_touch_points keeps the tip where it was found and gives the shift apart."""
+    f = Finger(320.3, 240.6, 30)
+    on = detect(bounds, [f])
+    off = find_touch_points(*_frame(bounds, [f]), TouchPointConfig(tip_tl_shift=0.0))
+    np.testing.assert_array_equal(on.xy_px, off.xy_px)
+    assert off.offset_px is None and on.offset_px is not None
+    x, y = np.rint(on.xy_px[0]).astype(int)
+    win = bounds.tl_mm[y - 4:y + 5, x - 4:x + 5][bounds.valid[y - 4:y + 5, x - 4:x + 5]]
+    tl = max(float(win.mean()) - bounds.tl_floor_mm, 0.0)  # Tl around the point, above its floor
+    assert tl > 0
+    assert np.hypot(*on.offset_px[0]) == pytest.approx(0.4 * tl / bounds.mm_per_px, rel=1e-6)
+
+
+def _frame(bounds, fingers, seed=0, noise=1.5):
+    rng = np.random.default_rng(seed)
+    hm = render_heights((480, 640), fingers, MM_PER_PX)
+    d = np.clip(np.rint(1000 - hm + rng.normal(0, noise, hm.shape)), 0, None).astype(np.uint16)
+    d[rng.random(d.shape) < 0.01] = 0
+    return d, band_regions(d, bounds), bounds

@@ -478,3 +478,14 @@ def test_what_is_not_a_steep_finger_never_goes_down(kw: dict[str, float]) -> Non
     an attached height beyond a finger's knuckles: the ordinary tests apply (and refuse it)."""
     tr = Tracker(TrackingConfig(), scale_mm_per_px=1.0)
     assert not any(run(tr, [_steep_tip(**kw)] * 12))
+
+
+def test_a_points_offset_moves_what_is_reported_not_what_is_tracked() -> None:
+    """TouchPoints.offset_px (the Tl shift) goes to Track.report_px; matching uses xy_px."""
+    tip = TouchPoints(np.array([[100.0, 100.0]]), np.array([5.0]), np.array([300]),
+                      np.array([[80.0, 100.0]]), offset_px=np.array([[1.5, -0.5]]))
+    tr = Tracker(TrackingConfig(down_frames=1), scale_mm_per_px=1.0)
+    (u,) = tr.update(tip)
+    assert u.state == "down"
+    assert u.track.xy_px == (100.0, 100.0)
+    assert u.track.report_px == (101.5, 99.5)

@@ -49,6 +49,7 @@ class BandBounds:
     tu_mm: float
     hand_max_mm: float
     min_hand_mm2: float = 6000.0
+    tl_floor_mm: float = 4.0  # the lowest Tl (RegionConfig.tl_floor_mm): tl_mm = max(it, k σ)
     # the hand map's samples (see handmap.hand_levels): high_lo / high_hi at the 4 middle
     # pixels of each 1/4 block, (4, h/4, w/4), and whether each block's corner pixel is usable
     hand_lo: np.ndarray | None = None
@@ -128,7 +129,7 @@ def band_bounds(surface: SurfaceModel, config: RegionConfig, tip_radius_mm: floa
         factor=f, tl_mm=tl, surface_mm=surface_mm, sigma_mm=surface.sigma_mm,
         valid=surface.valid, to_mm=to_mm, mm_per_px=mm_px, min_area_px=min_area,
         open_px=open_px, tu_mm=cfg.tu_mm, hand_max_mm=cfg.hand_max_mm,
-        min_hand_mm2=cfg.min_hand_mm2, normals=normals,
+        min_hand_mm2=cfg.min_hand_mm2, tl_floor_mm=cfg.tl_floor_mm, normals=normals,
         K=None if surface.K is None else np.asarray(surface.K, np.float64),
         hand_lo=_hand_samples(hl), hand_hi=_hand_samples(hh),
         hand_valid=np.ascontiguousarray(surface.valid[::HAND_SCALE, ::HAND_SCALE][

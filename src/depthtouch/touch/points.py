@@ -12,7 +12,10 @@ Two estimators, selectable by ``TouchPointConfig.method``:
   surface: the mean of the pi r^2 / 2 front-most pixels, less 4 r / (3 pi). Sub-pixel. That
   point is the image of the tip's centre, about a finger radius above the surface; it is then
   moved to the surface point beneath it (:mod:`depthtouch.touch.parallax`), which an oblique
-  view would otherwise place beyond the contact.
+  view would otherwise place beyond the contact. Where the depth is noisy, Tl is higher and
+  cuts more of the tip's front away: the reported contact is moved forward along the finger
+  by ``tip_tl_shift`` mm per mm of Tl above its floor (:func:`tl_shift_px`; an offset that
+  tracking does not use, ``TouchPoints.offset_px``).
 - ``paper`` (Lee & Kwon 2019): a search band of Ds pixels inside the bounding-box edge away from
   the hand; candidates are pixels within Tt of the surface; a candidate counts when its 3x3
   neighbourhood matches one of the block patterns; the touch point is the centre of the block
@@ -68,9 +71,53 @@ def find_touch_points(
     )
     if out.xy_px.shape[0] == 0:
         return TouchPoints.empty()
-    xy = foot_px(out.xy_px, b, config.tip_axis_mm) if config.method == "extremity" else out.xy_px
+    xy, offset = out.xy_px, None
+    if config.method == "extremity":
+        xy = foot_px(xy, b, config.tip_axis_mm)
+        if config.tip_tl_shift > 0:
+            offset = tl_shift_px(xy, out.hand_xy_px, b, config.tip_tl_shift) - xy
     return TouchPoints(xy, out.height_mm, out.area_px, out.hand_xy_px, out.hand_at_border,
-                       out.attach_px, out.attach_height_mm, out.back_spread_mm)
+                       out.attach_px, out.attach_height_mm, out.back_spread_mm, offset)
+
+
+# Tl is averaged over the (2 r + 1)² pixels around a point (r = 4 measured best on the hard
+# suite's tune half: jitter 0.93 / 0.92 / 0.93 mm at r = 2 / 4 / 8, 0.95 on the point's pixel)
+_TL_WINDOW_PX = 4
+
+
+def tl_shift_px(xy_px: np.ndarray, hand_xy_px: np.ndarray, bounds: BandBounds,
+                per_mm: float) -> np.ndarray:
+    """The points moved forward along their finger, away from their hand, by ``per_mm`` times
+    the amount by which Tl at their pixel exceeds its floor (mm on the surface; pure, float64
+    (N, 2)).
+
+    Where the depth is noisy, Tl rises above its floor (to k σ) and more of the tip's front
+    stays out of the band and out of the grown tip cap: the extremity is found behind the
+    contact, by 1.4-1.5 mm at the floor and 0.2-0.4 mm more per mm of Tl above it on stereo and
+    structured light, and not at all on ToF at the floor (hard suite, tune half;
+    docs/accuracy.md section 7, session 11). Tl is averaged over the point's neighbourhood.
+    At the floor the points do not move, nor do points without a hand direction.
+    """
+    xy = np.asarray(xy_px, np.float64).reshape(-1, 2)
+    if per_mm == 0.0 or xy.shape[0] == 0:
+        return xy.copy()
+    u = xy - np.asarray(hand_xy_px, np.float64).reshape(-1, 2)
+    n = np.hypot(u[:, 0], u[:, 1])
+    h, w = bounds.tl_mm.shape
+    r = _TL_WINDOW_PX
+    tl = np.zeros(xy.shape[0])
+    for i, (x, y) in enumerate(xy.tolist()):
+        # Tl of the neighbourhood: a pixel's own noise estimate is itself noisy, and a point
+        # moving by a pixel must not move its shift with it
+        ix, iy = min(max(round(x), 0), w - 1), min(max(round(y), 0), h - 1)
+        win = bounds.tl_mm[max(iy - r, 0):iy + r + 1, max(ix - r, 0):ix + r + 1]
+        ok = bounds.valid[max(iy - r, 0):iy + r + 1, max(ix - r, 0):ix + r + 1]
+        tl[i] = float(win[ok].mean()) if ok.any() else bounds.tl_floor_mm
+    step = per_mm * np.maximum(tl - bounds.tl_floor_mm, 0.0) / bounds.mm_per_px
+    ok = np.isfinite(n) & (n > 1e-6) & (step > 0.0)
+    if not ok.any():
+        return xy.copy()
+    return xy + u * np.where(ok, step / np.where(ok, n, 1.0), 0.0)[:, None]
 
 
 def _core_of(regions: Regions, shape: tuple[int, ...]) -> np.ndarray:

@@ -46,7 +46,8 @@ class Track:
 
     Positions are pairs of plain floats: a frame updates a handful of tracks, and a numpy call on
     a 2-vector costs as much as twenty float operations. xy_px: image px; pos: xy_px times the
-    tracker's scale (mm when known); vel: per frame, in the units of pos.
+    tracker's scale (mm when known); vel: per frame, in the units of pos. report_px: where the
+    contact is reported, xy_px plus its point's offset (TouchPoints.offset_px).
     """
 
     xy_px: XY
@@ -61,6 +62,11 @@ class Track:
     hand_at_border: bool = True
     merged: int = 0  # consecutive frames hidden in a neighbour's region
     evidence: float = 0.0  # pending: frames of touch seen, each weighted by how tip-like it was
+    offset_px: XY = (0.0, 0.0)
+
+    @property
+    def report_px(self) -> XY:
+        return (self.xy_px[0] + self.offset_px[0], self.xy_px[1] + self.offset_px[1])
 
     def predicted(self) -> XY:
         """Where the contact should be this frame (constant velocity per frame)."""
@@ -199,6 +205,8 @@ class Tracker:
         pos: list[XY] = [(x * scale, y * scale) for x, y in xy]
         h = points.height_mm.tolist()
         area = points.area_px.tolist()
+        offset: list[XY] = ([(0.0, 0.0)] * n_p if points.offset_px is None
+                            else list(map(tuple, points.offset_px.tolist())))
         hb = points.hand_at_border
         border: list[bool] = ([True] * n_p if hb is None else hb.tolist() if hb.dtype.kind == "b"
                               else [bool(b) for b in hb.tolist()])
@@ -250,6 +258,7 @@ class Tracker:
                 px, py = ox + sx, oy + sy
                 t.pos = (px, py)
                 t.xy_px = (px / scale, py / scale)
+                t.offset_px = offset[k]
                 t.height_mm = float(h[k])
                 t.hand_at_border = border[k]
                 t.seen += 1
@@ -265,6 +274,7 @@ class Tracker:
                 # neighbour's tip arriving in the region) must not throw the prediction off
                 t.vel = (0.5 * vx + 0.5 * ((px - ox) / m), 0.5 * vy + 0.5 * ((py - oy) / m))
                 t.xy_px, t.pos = xy[j], pos[j]
+                t.offset_px = offset[j]
                 t.height_mm, t.area_px = float(h[j]), int(area[j])
                 t.hand_at_border = border[j]
                 t.seen += 1
@@ -302,7 +312,7 @@ class Tracker:
             if j in used or not ok_new[j]:
                 continue
             t = Track(xy[j], pos[j], float(h[j]), int(area[j]), hand_at_border=border[j],
-                      evidence=weight[j])
+                      evidence=weight[j], offset_px=offset[j])
             if t.evidence >= down_frames - 1e-9:
                 self._activate(t)
                 out.append(TrackUpdate(t, "down", True))
