@@ -260,13 +260,15 @@ def test_a_higher_tl_moves_the_reported_contact_forward_along_the_finger(bounds)
 
     from depthtouch.touch.points import tl_shift_px
 
-    high = replace(bounds, tl_mm=np.full_like(bounds.tl_mm, 9.0), tl_floor_mm=4.0)
+    high = replace(bounds, tl_mm=np.full_like(bounds.tl_mm, 9.0), tl_around_mm=None,
+                   tl_floor_mm=4.0)
     xy = np.array([[320.0, 240.0], [100.0, 100.0]])
     hand = np.array([[300.0, 240.0], [100.0, 130.0]])  # hands behind: to the left, below
     got = tl_shift_px(xy, hand, high, 0.4)
     step = 2.0 / high.mm_per_px
     np.testing.assert_allclose(got, [[320.0 + step, 240.0], [100.0, 100.0 - step]])
-    floor = replace(bounds, tl_mm=np.full_like(bounds.tl_mm, 4.0), tl_floor_mm=4.0)
+    floor = replace(bounds, tl_mm=np.full_like(bounds.tl_mm, 4.0), tl_around_mm=None,
+                    tl_floor_mm=4.0)
     np.testing.assert_array_equal(tl_shift_px(xy, hand, floor, 0.4), xy)
     np.testing.assert_array_equal(tl_shift_px(xy, np.full_like(hand, np.nan), high, 0.4), xy)
     np.testing.assert_array_equal(tl_shift_px(xy, hand, high, 0.0), xy)
@@ -283,7 +285,23 @@ def test_the_shift_is_an_offset_tracking_does_not_use(bounds):
     win = bounds.tl_mm[y - 4:y + 5, x - 4:x + 5][bounds.valid[y - 4:y + 5, x - 4:x + 5]]
     tl = max(float(win.mean()) - bounds.tl_floor_mm, 0.0)  # Tl around the point, above its floor
     assert tl > 0
-    assert np.hypot(*on.offset_px[0]) == pytest.approx(0.4 * tl / bounds.mm_per_px, rel=1e-6)
+    assert np.hypot(*on.offset_px[0]) == pytest.approx(0.4 * tl / bounds.mm_per_px, rel=1e-4)
+
+
+def test_tl_around_is_the_mean_over_the_valid_pixels_of_the_square() -> None:
+    """The box sums equal the clipped 9x9 window's mean over valid pixels, edges included."""
+    from depthtouch.surface.bounds import tl_around
+
+    rng = np.random.default_rng(0)
+    tl = rng.uniform(4, 20, (30, 40)).astype(np.float32)
+    valid = rng.random((30, 40)) > 0.2
+    valid[10:20, 10:20] = False
+    got = tl_around(tl, valid)
+    for y, x in [(0, 0), (29, 39), (5, 17), (15, 15), (12, 3)]:
+        win, ok = tl[max(y - 4, 0):y + 5, max(x - 4, 0):x + 5], valid[max(y - 4, 0):y + 5,
+                                                                     max(x - 4, 0):x + 5]
+        want = win[ok].mean() if ok.any() else tl[y, x]
+        assert got[y, x] == pytest.approx(want, rel=1e-5)
 
 
 def _frame(bounds, fingers, seed=0, noise=1.5):

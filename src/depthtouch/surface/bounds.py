@@ -11,6 +11,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import cv2
 import numba
 import numpy as np
 
@@ -50,6 +51,9 @@ class BandBounds:
     hand_max_mm: float
     min_hand_mm2: float = 6000.0
     tl_floor_mm: float = 4.0  # the lowest Tl (RegionConfig.tl_floor_mm): tl_mm = max(it, k σ)
+    # Tl averaged over the valid pixels of the (2 TL_AROUND_PX + 1)² square around each pixel
+    # (float32; None: not computed, tl_mm stands in)
+    tl_around_mm: np.ndarray | None = None
     # the hand map's samples (see handmap.hand_levels): high_lo / high_hi at the 4 middle
     # pixels of each 1/4 block, (4, h/4, w/4), and whether each block's corner pixel is usable
     hand_lo: np.ndarray | None = None
@@ -103,6 +107,23 @@ def _bounds_kernel(surface_mm: np.ndarray, valid: np.ndarray, factor: np.ndarray
             out[3, y, x] = np.uint16(min(max(band_lo - one, one), np.float32(65535)))
 
 
+#: the half side of the square over which tl_around_mm averages Tl (4: 9x9 pixels, measured best
+#: for the touch points' Tl shift on the hard suite's tune half: jitter 0.93 / 0.92 / 0.93 mm at
+#: 2 / 4 / 8, 0.95 on the point's own pixel)
+TL_AROUND_PX = 4
+
+
+def tl_around(tl_mm: np.ndarray, valid: np.ndarray, r: int = TL_AROUND_PX) -> np.ndarray:
+    """Tl averaged over the valid pixels of the (2r + 1)² square around each pixel (the square
+    clipped at the frame's edges), float32; Tl itself where none is valid (pure)."""
+    v = valid.astype(np.float32)
+    k = (2 * r + 1, 2 * r + 1)
+    num = cv2.boxFilter(np.where(valid, tl_mm, 0).astype(np.float32), -1, k, normalize=False,
+                        borderType=cv2.BORDER_CONSTANT)
+    den = cv2.boxFilter(v, -1, k, normalize=False, borderType=cv2.BORDER_CONSTANT)
+    return np.where(den > 0.5, num / np.maximum(den, 1.0), tl_mm).astype(np.float32)
+
+
 def band_bounds(surface: SurfaceModel, config: RegionConfig, tip_radius_mm: float = 7.0) -> BandBounds:
     """Precompute the per-pixel depth bounds of the band and of the hand (once per surface).
 
@@ -129,7 +150,8 @@ def band_bounds(surface: SurfaceModel, config: RegionConfig, tip_radius_mm: floa
         factor=f, tl_mm=tl, surface_mm=surface_mm, sigma_mm=surface.sigma_mm,
         valid=surface.valid, to_mm=to_mm, mm_per_px=mm_px, min_area_px=min_area,
         open_px=open_px, tu_mm=cfg.tu_mm, hand_max_mm=cfg.hand_max_mm,
-        min_hand_mm2=cfg.min_hand_mm2, tl_floor_mm=cfg.tl_floor_mm, normals=normals,
+        min_hand_mm2=cfg.min_hand_mm2, tl_floor_mm=cfg.tl_floor_mm,
+        tl_around_mm=tl_around(tl, surface.valid), normals=normals,
         K=None if surface.K is None else np.asarray(surface.K, np.float64),
         hand_lo=_hand_samples(hl), hand_hi=_hand_samples(hh),
         hand_valid=np.ascontiguousarray(surface.valid[::HAND_SCALE, ::HAND_SCALE][

@@ -80,11 +80,6 @@ def find_touch_points(
                        out.attach_px, out.attach_height_mm, out.back_spread_mm, offset)
 
 
-# Tl is averaged over the (2 r + 1)² pixels around a point (r = 4 measured best on the hard
-# suite's tune half: jitter 0.93 / 0.92 / 0.93 mm at r = 2 / 4 / 8, 0.95 on the point's pixel)
-_TL_WINDOW_PX = 4
-
-
 def tl_shift_px(xy_px: np.ndarray, hand_xy_px: np.ndarray, bounds: BandBounds,
                 per_mm: float) -> np.ndarray:
     """The points moved forward along their finger, away from their hand, by ``per_mm`` times
@@ -95,7 +90,8 @@ def tl_shift_px(xy_px: np.ndarray, hand_xy_px: np.ndarray, bounds: BandBounds,
     stays out of the band and out of the grown tip cap: the extremity is found behind the
     contact, by 1.4-1.5 mm at the floor and 0.2-0.4 mm more per mm of Tl above it on stereo and
     structured light, and not at all on ToF at the floor (hard suite, tune half;
-    docs/accuracy.md section 7, session 11). Tl is averaged over the point's neighbourhood.
+    docs/accuracy.md section 7, session 11). Tl is averaged over the point's neighbourhood
+    (``BandBounds.tl_around_mm``).
     At the floor the points do not move, nor do points without a hand direction.
     """
     xy = np.asarray(xy_px, np.float64).reshape(-1, 2)
@@ -103,16 +99,13 @@ def tl_shift_px(xy_px: np.ndarray, hand_xy_px: np.ndarray, bounds: BandBounds,
         return xy.copy()
     u = xy - np.asarray(hand_xy_px, np.float64).reshape(-1, 2)
     n = np.hypot(u[:, 0], u[:, 1])
-    h, w = bounds.tl_mm.shape
-    r = _TL_WINDOW_PX
-    tl = np.zeros(xy.shape[0])
-    for i, (x, y) in enumerate(xy.tolist()):
-        # Tl of the neighbourhood: a pixel's own noise estimate is itself noisy, and a point
-        # moving by a pixel must not move its shift with it
-        ix, iy = min(max(round(x), 0), w - 1), min(max(round(y), 0), h - 1)
-        win = bounds.tl_mm[max(iy - r, 0):iy + r + 1, max(ix - r, 0):ix + r + 1]
-        ok = bounds.valid[max(iy - r, 0):iy + r + 1, max(ix - r, 0):ix + r + 1]
-        tl[i] = float(win[ok].mean()) if ok.any() else bounds.tl_floor_mm
+    # Tl of the neighbourhood (BandBounds.tl_around_mm): a pixel's own noise estimate is itself
+    # noisy, and a point moving by a pixel must not move its shift with it
+    tl_map = bounds.tl_around_mm if bounds.tl_around_mm is not None else bounds.tl_mm
+    h, w = tl_map.shape
+    ix = np.clip(np.rint(xy[:, 0]), 0, w - 1).astype(np.intp)
+    iy = np.clip(np.rint(xy[:, 1]), 0, h - 1).astype(np.intp)
+    tl = tl_map[iy, ix].astype(np.float64)
     step = per_mm * np.maximum(tl - bounds.tl_floor_mm, 0.0) / bounds.mm_per_px
     ok = np.isfinite(n) & (n > 1e-6) & (step > 0.0)
     if not ok.any():
