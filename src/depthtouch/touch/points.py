@@ -34,6 +34,8 @@ compiled too (:mod:`depthtouch.touch.regions`, :mod:`depthtouch.touch.handmap`).
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from ..config import TouchPointConfig
@@ -95,22 +97,28 @@ def tl_shift_px(xy_px: np.ndarray, hand_xy_px: np.ndarray, bounds: BandBounds,
     At the floor the points do not move, nor do points without a hand direction.
     """
     xy = np.asarray(xy_px, np.float64).reshape(-1, 2)
-    if per_mm == 0.0 or xy.shape[0] == 0:
-        return xy.copy()
-    u = xy - np.asarray(hand_xy_px, np.float64).reshape(-1, 2)
-    n = np.hypot(u[:, 0], u[:, 1])
+    out = xy.copy()
+    if per_mm == 0.0:
+        return out
     # Tl of the neighbourhood (BandBounds.tl_around_mm): a pixel's own noise estimate is itself
     # noisy, and a point moving by a pixel must not move its shift with it
     tl_map = bounds.tl_around_mm if bounds.tl_around_mm is not None else bounds.tl_mm
-    h, w = tl_map.shape
-    ix = np.clip(np.rint(xy[:, 0]), 0, w - 1).astype(np.intp)
-    iy = np.clip(np.rint(xy[:, 1]), 0, h - 1).astype(np.intp)
-    tl = tl_map[iy, ix].astype(np.float64)
-    step = per_mm * np.maximum(tl - bounds.tl_floor_mm, 0.0) / bounds.mm_per_px
-    ok = np.isfinite(n) & (n > 1e-6) & (step > 0.0)
-    if not ok.any():
-        return xy.copy()
-    return xy + u * np.where(ok, step / np.where(ok, n, 1.0), 0.0)[:, None]
+    h1, w1 = tl_map.shape[0] - 1, tl_map.shape[1] - 1
+    k = per_mm / bounds.mm_per_px
+    floor = bounds.tl_floor_mm
+    # a handful of points per frame: plain floats cost less than array calls here
+    for i, ((x, y), (hx, hy)) in enumerate(zip(xy.tolist(),
+                                              np.asarray(hand_xy_px).reshape(-1, 2).tolist())):
+        ux, uy = x - hx, y - hy
+        n = math.hypot(ux, uy)
+        if not n > 1e-6:  # also NaN: no hand direction
+            continue
+        above = float(tl_map[min(max(round(y), 0), h1), min(max(round(x), 0), w1)]) - floor
+        if above > 0.0:
+            step = k * above / n
+            out[i, 0] = x + ux * step
+            out[i, 1] = y + uy * step
+    return out
 
 
 def _core_of(regions: Regions, shape: tuple[int, ...]) -> np.ndarray:
