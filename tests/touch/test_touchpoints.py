@@ -258,7 +258,10 @@ def test_a_higher_tl_moves_the_reported_contact_forward_along_the_finger(bounds)
     the floor, without a hand direction, or with the shift off, it stays."""
     from dataclasses import replace
 
-    from depthtouch.touch.points import tl_shift_px
+    from depthtouch.touch.points import tl_offset_px
+
+    def tl_shift_px(xy, hand, b, per_mm):  # the points as reported: found + offset
+        return xy + tl_offset_px(xy, hand, b, per_mm)
 
     high = replace(bounds, tl_mm=np.full_like(bounds.tl_mm, 9.0), tl_around_mm=None,
                    tl_floor_mm=4.0)

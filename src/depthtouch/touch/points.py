@@ -14,7 +14,7 @@ Two estimators, selectable by ``TouchPointConfig.method``:
   moved to the surface point beneath it (:mod:`depthtouch.touch.parallax`), which an oblique
   view would otherwise place beyond the contact. Where the depth is noisy, Tl is higher and
   cuts more of the tip's front away: the reported contact is moved forward along the finger
-  by ``tip_tl_shift`` mm per mm of Tl above its floor (:func:`tl_shift_px`; an offset that
+  by ``tip_tl_shift`` mm per mm of Tl above its floor (:func:`tl_offset_px`; an offset that
   tracking does not use, ``TouchPoints.offset_px``).
 - ``paper`` (Lee & Kwon 2019): a search band of Ds pixels inside the bounding-box edge away from
   the hand; candidates are pixels within Tt of the surface; a candidate counts when its 3x3
@@ -77,16 +77,16 @@ def find_touch_points(
     if config.method == "extremity":
         xy = foot_px(xy, b, config.tip_axis_mm)
         if config.tip_tl_shift > 0:
-            offset = tl_shift_px(xy, out.hand_xy_px, b, config.tip_tl_shift) - xy
+            offset = tl_offset_px(xy, out.hand_xy_px, b, config.tip_tl_shift)
     return TouchPoints(xy, out.height_mm, out.area_px, out.hand_xy_px, out.hand_at_border,
                        out.attach_px, out.attach_height_mm, out.back_spread_mm, offset)
 
 
-def tl_shift_px(xy_px: np.ndarray, hand_xy_px: np.ndarray, bounds: BandBounds,
-                per_mm: float) -> np.ndarray:
-    """The points moved forward along their finger, away from their hand, by ``per_mm`` times
-    the amount by which Tl at their pixel exceeds its floor (mm on the surface; pure, float64
-    (N, 2)).
+def tl_offset_px(xy_px: np.ndarray, hand_xy_px: np.ndarray, bounds: BandBounds,
+                 per_mm: float) -> np.ndarray:
+    """How far (px) to move each point forward along its finger, away from its hand: ``per_mm``
+    times the amount by which Tl at its pixel exceeds its floor, in mm on the surface (pure,
+    float64 (N, 2)).
 
     Where the depth is noisy, Tl rises above its floor (to k σ) and more of the tip's front
     stays out of the band and out of the grown tip cap: the extremity is found behind the
@@ -94,10 +94,10 @@ def tl_shift_px(xy_px: np.ndarray, hand_xy_px: np.ndarray, bounds: BandBounds,
     structured light, and not at all on ToF at the floor (hard suite, tune half;
     docs/accuracy.md section 7, session 11). Tl is averaged over the point's neighbourhood
     (``BandBounds.tl_around_mm``).
-    At the floor the points do not move, nor do points without a hand direction.
+    At the floor the offset is 0, and so it is for points without a hand direction.
     """
     xy = np.asarray(xy_px, np.float64).reshape(-1, 2)
-    out = xy.copy()
+    out = np.zeros_like(xy)
     if per_mm == 0.0:
         return out
     # Tl of the neighbourhood (BandBounds.tl_around_mm): a pixel's own noise estimate is itself
@@ -116,8 +116,8 @@ def tl_shift_px(xy_px: np.ndarray, hand_xy_px: np.ndarray, bounds: BandBounds,
         above = float(tl_map[min(max(round(y), 0), h1), min(max(round(x), 0), w1)]) - floor
         if above > 0.0:
             step = k * above / n
-            out[i, 0] = x + ux * step
-            out[i, 1] = y + uy * step
+            out[i, 0] = ux * step
+            out[i, 1] = uy * step
     return out
 
 

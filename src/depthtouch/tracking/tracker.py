@@ -129,7 +129,8 @@ def _steep(points: TouchPoints, area_px: list[int], scale: float | None,
            cfg: TrackingConfig) -> list[bool]:
     """Which points look like the top of a steep finger's tip (TrackingConfig.steep_*): the
     area, the height of the top, the hand right behind it at the height of a finger rising to
-    its knuckles. None without a scale or the attachment's height."""
+    its knuckles. All False without a scale or the attachment's height, or with
+    steep_evidence 0."""
     n = len(area_px)
     ah, hand = points.attach_height_mm, points.hand_xy_px
     if scale is None or cfg.steep_evidence <= 0 or ah is None or hand is None:
