@@ -411,57 +411,6 @@ def test_landing_ends_after_land_frames():
     np.testing.assert_array_equal(short[7:], free[7:])
 
 
-def _tap_with(jumps, n=20, seed=5, **params):
-    """A tap (n frames, 1.5 mm noise) whose measurements at the frames ``jumps`` (frame ->
-    (dx, dy) in mm) are moved; returns the outputs."""
-    xy = 100.0 + np.random.default_rng(seed).normal(0, 1.5, (n, 2))
-    for k, d in jumps.items():
-        xy[k] += d
-    return _run(make_filter("adaptive_euro", **params), np.arange(n) / 30, xy)
-
-
-def test_landing_holds_a_one_frame_jump_of_its_tip():
-    """A landing tip whose estimate leaps 15 mm for one frame and comes back: the output is
-    held on that frame, and afterwards it is exactly that of the tap without the frame (as if
-    the camera had not seen the touch then). With spike_mm 0 the jump moves the output by
-    several mm."""
-    out = _tap_with({10: (15.0, 0.0)})
-    np.testing.assert_array_equal(out[10], out[9])
-    xy = 100.0 + np.random.default_rng(5).normal(0, 1.5, (20, 2))
-    f, t = make_filter("adaptive_euro"), np.arange(20) / 30
-    gap = [f.update(np.array([0]), xy[k : k + 1], t[k])[0] for k in range(20) if k != 10]
-    np.testing.assert_array_equal(out[11:], np.array(gap[10:]))
-    calm = _tap_with({})
-    free = _tap_with({10: (15.0, 0.0)}, spike_mm=0.0)
-    assert np.abs(free[10:] - calm[10:]).max() > 3.0
-
-
-def test_landing_takes_a_jump_that_stays_on_its_second_frame():
-    """A jump of 15 mm that stays (the finger slid): held on its first frame only, followed
-    from its second. A second jump soon after is not held (no hold every other frame)."""
-    out = _tap_with({k: (15.0, 0.0) for k in range(10, 20)})
-    np.testing.assert_array_equal(out[10], out[9])
-    assert out[11, 0] > out[9, 0] + 5.0
-    assert out[12:, 0].min() > out[9, 0] + 10.0
-    twice = _tap_with({10: (15.0, 0.0), 13: (-15.0, 0.0)})
-    assert np.abs(twice[13] - twice[12]).max() > 1.0
-
-
-def test_landing_jump_is_not_judged_early_or_in_motion():
-    """A jump within the first ``spike_after`` measurements (a drag starting from touch-down)
-    passes at once; so does one below max(spike_mm, spike_sigmas σ), and one of a touch that
-    moves (a drag, faster than rest_mm_s)."""
-    early = _tap_with({3: (15.0, 0.0)})
-    assert np.abs(early[3] - early[2]).max() > 2.0
-    small = _tap_with({10: (6.0, 0.0)})
-    assert np.abs(small[10] - small[9]).max() > 0.5
-    t = np.arange(30) / 30
-    drag = np.stack([100.0 + 150.0 * t, 100.0 + 0 * t], axis=1)
-    drag[15, 1] += 15.0
-    f, g = make_filter("adaptive_euro"), make_filter("adaptive_euro", spike_mm=0.0)
-    np.testing.assert_array_equal(_run(f, t, drag), _run(g, t, drag))
-
-
 # --- golden: the authors' 1€ implementation ------------------------------------------------------
 def _reference_one_euro(t, x, min_cutoff, beta, d_cutoff):
     """The PyPI OneEuroFilter on each axis, with two of its quirks worked around here:

@@ -72,8 +72,7 @@ class FilterBase:
     (``_state[name]``; each field is a vector per touch), all views of ``_buf``. ``_init`` fills
     the rows of new touches from their first measurement (their ``_t`` is already set);
     ``_step`` advances a copy of the rows whose dt > 0 (their fields in place) and returns
-    their output; it may set ``_withheld`` (bool per row) to the rows whose measurement it
-    judged not to be one (a one-frame jump): their time stays, as for a frame without them.
+    their output.
     """
 
     name: ClassVar[str] = ""
@@ -109,7 +108,6 @@ class FilterBase:
         """Forget every touch."""
         self._rows: dict[int, int] = {}
         self._free: list[int] = []
-        self._withheld: np.ndarray | None = None
         self._alloc(np.zeros((0, self._WIDTH)))
 
     def _alloc(self, buf: np.ndarray) -> None:
@@ -188,7 +186,7 @@ class FilterBase:
             if min(dt_s.tolist()) > 0.0:
                 out = self._step(s, xy, dt_s)
                 s[:, 0:2] = out
-                self._advance_time(s, t)
+                s[:, 2] = t
                 self._buf[rows] = s
                 return out
         rows, is_new = self._lookup(id_list)
@@ -204,14 +202,9 @@ class FilterBase:
             step_rows = old_rows[moved]
             s = self._buf[step_rows]
             s[:, 0:2] = self._step(s, old_xy[moved], dt_s[moved])
-            self._advance_time(s, t)
+            s[:, 2] = t
             self._buf[step_rows] = s
         return self._out[rows].copy()
-
-    def _advance_time(self, s: np.ndarray, t: float) -> None:
-        """Set the time of the stepped rows ``s`` to t, except those the step withheld."""
-        held, self._withheld = self._withheld, None
-        s[:, 2] = t if held is None else np.where(held, s[:, 2], t)
 
     def _init(self, rows: np.ndarray, xy: np.ndarray) -> None:
         for a in self._state.values():

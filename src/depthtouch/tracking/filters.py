@@ -43,9 +43,6 @@ FILTERS: tuple[str, ...] = ("none", "lowpass", "kalman", "adaptive", "one_euro",
 #: The filter the pipeline uses by default, chosen by measurement on the hard suite's tune half
 #: (docs/filters.md): the adaptive filter's turns and lag, with a finger at rest held still.
 DEFAULT_FILTER = "adaptive_euro"
-#: after a one-frame jump was held (adaptive_euro's spike_mm), none is judged for this many
-#: frames: a jump that is the start of a move is held once, never every other frame
-SPIKE_REST_FRAMES = 6.0
 
 
 class NoFilter(FilterBase):
@@ -265,21 +262,6 @@ class AdaptiveEuroFilter(FilterBase):
       mean of two), under 1 mm more lag than without it at 10-60 mm/s.
     - Ranges: land_frames [0, 10000] (0 turns it off), land_blend_sigmas [0, 100],
       land_sigmas (0, 100].
-    A jump of a landing tip (spike_mm > 0): the tip estimate of a finger at range sometimes
-    leaps 8-17 mm for one frame (a speck of the band at its edge, a mixed pixel), and the
-    landing's mean, its line and the 1€ stage would all take it in.
-
-    - A measurement is withheld (as if the frame had not seen the touch; the output is held)
-      when the touch is landing and calm (the smoothed speed under ``rest_mm_s``), has had
-      ``spike_after`` measurements (default 5), and lies farther than max(``spike_mm``,
-      ``spike_sigmas``·σ) (defaults 8 mm, 4) from where the adaptive stage expects it.
-    - After one is held, none is judged for SPIKE_REST_FRAMES frames: a real move is taken on
-      its second frame (one frame of lag, once).
-    - The first measurements are never judged: a drag that starts from touch-down is not
-      held (judged from the third measurement, the hard suite's tune half measured a path
-      angle error of 4.9° against 4.3°).
-    - Ranges: spike_mm [0, 1000] (0 turns it off), spike_sigmas [0, 100], spike_after
-      [0, 1000].
     Defaults chosen by measurement (docs/filters.md).
     """
 
@@ -302,23 +284,19 @@ class AdaptiveEuroFilter(FilterBase):
         "land_frames": Param(32.0, 0.0, 10000.0, lo_open=False),
         "land_blend_sigmas": Param(1.5, 0.0, 100.0, lo_open=False),
         "land_sigmas": Param(6.0, 0.0, 100.0),
-        "spike_mm": Param(8.0, 0.0, 1000.0, lo_open=False),
-        "spike_sigmas": Param(4.0, 0.0, 100.0, lo_open=False),
-        "spike_after": Param(5.0, 0.0, 1000.0, lo_open=False),
     }
     # the adaptive stage's position (mm) and velocity (mm/s); the smoothed speed vector (mm/s);
     # the 1€ stage's output (mm); the noise: the last two measurements (mm), how many were seen,
     # the noise estimate (mm RMS per axis); the stillness test: exponentially weighted sums of
     # the measurements over time (weight, Σt, Σt², Σx, Σtx; t in s relative to the last update);
-    # the lock: its mean (mm), its frame count (0 = not locked), its squared radius (mm²); the
-    # landing's flag; the frames left before a jump is judged again
+    # the lock: its mean (mm), its frame count (0 = not locked), its squared radius (mm²)
     _FIELDS = {"p": (2,), "v": (2,), "dx": (2,), "e": (2,), "z1": (2,), "z2": (2,), "nz": (1,),
                "sd": (1,), "q0": (1,), "qt": (1,), "qtt": (1,), "qx": (2,), "qtx": (2,),
-               "m": (2,), "n": (1,), "r2": (1,), "land": (1,), "spk": (1,)}
+               "m": (2,), "n": (1,), "r2": (1,), "land": (1,)}
 
     def _init(self, rows: np.ndarray, xy: np.ndarray) -> None:
         st = self._state
-        for k in ("v", "dx", "qt", "qtt", "qtx", "m", "n", "r2", "spk"):
+        for k in ("v", "dx", "qt", "qtt", "qtx", "m", "n", "r2"):
             st[k][rows] = 0.0
         for k in ("p", "e", "z1", "z2", "qx"):
             st[k][rows] = xy
@@ -328,20 +306,6 @@ class AdaptiveEuroFilter(FilterBase):
         st["land"][rows] = 1.0 if self.params["land_frames"] > 0 else 0.0
 
     def _step(self, s: np.ndarray, xy: np.ndarray, dt_s: np.ndarray) -> np.ndarray:
-        if self.params["spike_mm"] > 0:
-            spike = self._spikes(s, xy, dt_s)
-            if spike.any():
-                keep = s.copy()
-                out = self._advance(s, xy, dt_s)
-                # a one-frame jump of a landing tip: its state as it was, the output held, and
-                # no jump judged for the next SPIKE_REST_FRAMES frames
-                s[spike] = keep[spike]
-                s[spike, self._COLS["spk"]] = SPIKE_REST_FRAMES
-                self._withheld = spike
-                return np.where(spike[:, None], keep[:, 0:2], out)
-        return self._advance(s, xy, dt_s)
-
-    def _advance(self, s: np.ndarray, xy: np.ndarray, dt_s: np.ndarray) -> np.ndarray:
         p_col, v_col, dx_col = self._COLS["p"], self._COLS["v"], self._COLS["dx"]
         prm = self.params
         v, p_old = s[:, v_col], s[:, p_col]
@@ -372,21 +336,6 @@ class AdaptiveEuroFilter(FilterBase):
             return e
         sd, med = self._recent(s, xy, dt_s)
         return self._lock(s, xy, e, dt_s, sd, med)
-
-    def _spikes(self, s: np.ndarray, xy: np.ndarray, dt_s: np.ndarray) -> np.ndarray:
-        """Which measurements are one-frame jumps of a landing tip (see the class doc); counts
-        down the frames in which none is judged."""
-        c = self._COLS
-        prm = self.params
-        pred = s[:, c["p"]] + s[:, c["v"]] * dt_s[:, None]
-        lim = np.maximum(prm["spike_mm"], prm["spike_sigmas"] * s[:, c["sd"]][:, 0])
-        far = np.sum((xy - pred) ** 2, axis=1) > lim * lim
-        dx = s[:, c["dx"]]
-        calm = np.hypot(dx[:, 0], dx[:, 1]) < prm["rest_mm_s"]
-        wait = s[:, c["spk"]][:, 0]
-        s[:, c["spk"]] = np.maximum(wait - 1.0, 0.0)[:, None]
-        landing = (s[:, c["land"]][:, 0] > 0) & (s[:, c["nz"]][:, 0] - 1.0 >= prm["spike_after"])
-        return far & calm & landing & (wait <= 0)
 
     def _recent(self, s: np.ndarray, xy: np.ndarray, dt_s: np.ndarray
                 ) -> tuple[np.ndarray, np.ndarray]:
