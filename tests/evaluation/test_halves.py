@@ -39,6 +39,22 @@ def test_split_is_deterministic_and_disjoint() -> None:
         assert {key(c) for c in tune} == {key(c) for c in held}
 
 
+def test_check_set_is_the_hard_suite_with_fresh_seeds() -> None:
+    """hard-fresh: the same situations and placements as hard, none of its recordings."""
+    hard, fresh = load_suite("hard").cases, load_suite("hard-fresh").cases
+
+    def recording(c: SuiteCase) -> tuple[Any, ...]:
+        return dataclasses.astuple(dataclasses.replace(c, group=""))
+
+    def situation(c: SuiteCase) -> tuple[Any, ...]:
+        return recording(dataclasses.replace(c, seed=0))
+
+    assert len(fresh) == 50
+    assert not {recording(c) for c in fresh} & {recording(c) for c in hard}
+    assert {situation(c) for c in fresh} == {situation(c) for c in hard}
+    assert {c.group for c in fresh} == {c.group for c in hard}
+
+
 def test_half_depends_on_seed_and_placement_only() -> None:
     a = SuiteCase("approach", "kinect-v2-hard", 2.0, tilt_deg=30.0, seed=3, group="x")
     assert half_of(a) == half_of(dataclasses.replace(a, scene="rest", group="y", fps=15.0))
