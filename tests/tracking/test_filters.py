@@ -383,9 +383,11 @@ def test_landing_holds_a_tap_at_the_mean_of_its_measurements():
 @pytest.mark.parametrize("speed_mm_s", [10.0, 20.0, 40.0, 60.0, 200.0])
 def test_landing_lets_a_drag_from_touch_down_go(speed_mm_s):
     """A drag that starts at touch-down (1 mm noise): the landing ends once the line through
-    the measurements moves beyond its noise (by frame 20 at 10 mm/s, sooner when faster), and
-    from then on the output is exactly the landing-free filter's; meanwhile it lags that by at
-    most half a frame's travel plus 1 mm."""
+    the medians of the measurements moves beyond its noise (by frame 30 at 10 mm/s: at that
+    speed the window may restart once, at frame 16; by frame 14 from 20 mm/s), and from then
+    on the output is exactly the landing-free filter's; meanwhile it lags that by at most a
+    frame's travel plus 1 mm (half a frame's, when the slope was tested on the raw measurements;
+    the median costs its frame: 7.2 against 3.9 mm at 200 mm/s on one seed)."""
     t = np.arange(60) / 30
     for seed in range(5):
         rng = np.random.default_rng(seed + int(speed_mm_s))
@@ -394,9 +396,58 @@ def test_landing_lets_a_drag_from_touch_down_go(speed_mm_s):
         out = _run(make_filter("adaptive_euro"), t, drag)
         free = _run(make_filter("adaptive_euro", land_frames=0), t, drag)
         differs = np.flatnonzero(np.any(out != free, axis=1))
-        assert differs.size == 0 or differs.max() < 20
+        assert differs.size == 0 or differs.max() < (30 if speed_mm_s < 20 else 14)
         extra = free[:, 0] - out[:, 0]  # how much farther behind the landing is
-        assert extra.max() <= 0.5 * speed_mm_s / 30 + 1.0
+        assert extra.max() <= speed_mm_s / 30 + 1.0
+
+
+def test_landing_ignores_a_one_frame_jump():
+    """A 12 mm one-frame jump of the tip estimate during the landing (1 mm noise): the slope is
+    tested on medians of three, so the landing goes on and the jump enters only its mean
+    (≤ 1.5 mm on the output); without the landing the output follows the jump (≥ 10 mm)."""
+    t = np.arange(40) / 30
+    for seed in range(5):
+        xy = 100.0 + np.random.default_rng(seed).normal(0, 1.0, (40, 2))
+        jump = xy.copy()
+        jump[10, 0] += 12.0
+        out = _run(make_filter("adaptive_euro", lock_frames=0), t, xy)
+        moved = _run(make_filter("adaptive_euro", lock_frames=0), t, jump)
+        free = _run(make_filter("adaptive_euro", lock_frames=0, land_frames=0), t, jump)
+        assert np.abs(moved - out).max() <= 1.5
+        assert np.abs(free - out).max() >= 10.0
+
+
+def test_landing_restarts_after_a_slanted_descent():
+    """A finger reported down while it still slides in (6 mm over 16 frames, 2 mm noise: a
+    camera at range), then holds: the landing's window restarts at the hold, so the output
+    over the last 12 frames lies nearer the hold on every seed and, pooled over 8, at under
+    0.7 of the error without the restart (measured 0.63 against 1.23 mm)."""
+    n, t = 48, np.arange(48) / 30
+    errs = []
+    for seed in range(8):
+        true = np.full((n, 2), 100.0)
+        true[:16, 0] = 100.0 - np.linspace(6.0, 0.0, 16)
+        xy = true + np.random.default_rng(seed).normal(0, 2.0, (n, 2))
+        err = [np.hypot(*(_run(make_filter("adaptive_euro", lock_frames=0, land_restart_frames=k),
+                                t, xy) - true)[-12:].T).mean() for k in (8, 0)]
+        assert err[0] <= err[1] + 1e-9
+        errs.append(err)
+    restart, without = np.mean(errs, axis=0)
+    assert restart < 0.7 * without
+
+
+def test_landing_restarts_at_most_once_so_a_slow_drag_goes():
+    """A drag at 5 mm/s (1 mm noise) looks flat over 8 frames; the window restarts at most
+    once, so the landing still ends (3 s later the output is the landing-free filter's; the
+    rest lock, which would hold this drag too, is off) and lags that by at most 1.5 mm."""
+    t = np.arange(90) / 30
+    for seed in range(10):
+        drag = np.stack([100.0 + 5.0 * t, 100.0 + 0 * t], axis=1)
+        drag = drag + np.random.default_rng(seed).normal(0, 1.0, (90, 2))
+        out = _run(make_filter("adaptive_euro", lock_frames=0), t, drag)
+        free = _run(make_filter("adaptive_euro", lock_frames=0, land_frames=0), t, drag)
+        np.testing.assert_array_equal(out[-20:], free[-20:])
+        assert (free[:, 0] - out[:, 0]).max() <= 1.5
 
 
 def test_landing_ends_after_land_frames():
