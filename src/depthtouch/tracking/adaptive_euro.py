@@ -227,8 +227,9 @@ class AdaptiveEuroFilter(FilterBase):
         ls = s[:, c["ls"]][:, 0]
         kc = prm["land_restart_frames"]
         if kc >= 2:
-            # a landing whose last land_restart_frames measurements sit apart from the ones before them
-            # (a finger that came down at a slant, then held) starts again from those
+            # a landing whose last land_restart_frames medians are flat and sit apart from the
+            # ones before them (a finger that came down at a slant, then held) starts again
+            # from those, once per touch (a slow drag looks flat over a few frames too)
             old = land & (ls == 0.0) & (cnt >= 2.0 * kc)
             if old.any():
                 rec = (j > (cnt - 1.0 - kc)[:, None]) & (j >= 0)
@@ -245,7 +246,8 @@ class AdaptiveEuroFilter(FilterBase):
         age = np.maximum((cnt - 1.0)[:, None] - j, 0.0)
         keep = 1.0 - 1.0 / max(prm["land_frames"], prm["lock_frames"], 2.0)
         wt = np.where(win, keep ** age, 0.0)
-        mean, _, _ = self._line(hx, hy, ht, wt)
+        mean = np.stack([(wt * hx).sum(axis=1), (wt * hy).sum(axis=1)], axis=1) / wt.sum(
+            axis=1, keepdims=True)
         _, sl, se = self._line(gx, gy, ht, wt)
         z = np.where(cnt - ls < 3.0, 0.0, np.hypot(sl[:, 0], sl[:, 1]) / np.maximum(se * sd, 1e-12))
         lo, hi = prm["land_blend_sigmas"], prm["land_sigmas"]
