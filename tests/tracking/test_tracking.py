@@ -425,6 +425,28 @@ def test_a_region_attached_along_more_than_a_finger_gives_no_evidence(
     assert "down" in [s for f in run(off, [_attached(n, scale)] * 8) for _, s in f]
 
 
+@pytest.mark.parametrize(("height_mm", "low_mm", "down_at"), [
+    (2.5, 3.0, 7),      # a finger of a hand held low: 0.25 a frame, down on the 8th frame
+    (3.0, 3.0, 7),
+    (3.5, 3.0, None),   # higher than a resting pad: an edge, nothing
+    (2.5, 0.0, None),   # the exception off
+])
+def test_a_broadly_attached_region_resting_on_the_surface_counts_a_little(
+        height_mm: float, low_mm: float, down_at: int | None) -> None:
+    """A region attached along 60 mm at 5 mm/px (refused as a forearm's edge) whose touching
+    pixel rests within attach_low_mm of the surface counts attach_low_evidence a frame."""
+    scale = 5.0
+    n = int(round(2 * (60.0 / scale + 4)))
+    tip = TouchPoints(np.array([[100.0, 100.0]]), np.array([height_mm]),
+                      np.array([int(round(300 / scale**2))]), np.array([[np.nan, np.nan]]),
+                      None, np.array([n]))
+    cfg = TrackingConfig(down_frames=2, attach_max_mm=30.0, attach_low_mm=low_mm,
+                         attach_low_evidence=0.25)
+    frames = run(Tracker(cfg, scale_mm_per_px=scale), [tip] * 20)
+    downs = [k for k, f in enumerate(frames) if any(s == "down" for _, s in f)]
+    assert downs[:1] == ([] if down_at is None else [down_at])
+
+
 @pytest.mark.parametrize(("step_mm", "goes_down"), [(35.0, True), (150.0, False), (np.nan, True)])
 def test_a_region_next_to_a_high_step_gives_no_evidence(step_mm: float, goes_down: bool) -> None:
     """Mixed pixels at the side of a hand 150 mm up are not a fingertip; a finger rising from

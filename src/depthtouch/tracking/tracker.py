@@ -330,9 +330,11 @@ class Tracker:
         (a hovering finger or a forearm's edge lying in the band) counts ``weak_evidence``, so it
         must persist for more frames before it is believed. A region attached to its hand along
         more than ``attach_max_mm`` (the broad edge of a forearm or a palm lying in the band, not
-        a fingertip at the end of a finger) counts nothing, and so does one whose attached hand
-        pixels lie higher than ``step_max_mm`` (a finger rises from the band gradually; mixed
-        pixels at the side of a raised hand jump), and so does one with level heights behind it
+        a fingertip at the end of a finger) counts nothing (``attach_low_evidence`` if it rests
+        within ``attach_low_mm`` of the surface: a finger of a hand held low), and so does one
+        whose attached hand pixels lie higher than ``step_max_mm`` (a finger rises from the band
+        gradually; mixed pixels at the side of a raised hand jump), and so does one with level
+        heights behind it
         (``flat_max_mm``: the top of a held book, the flank of a forearm; a finger rises and
         is narrow), and so does a point on the axis of another point low enough to go down,
         behind it (``behind_lat_mm``: a finger has one tip; what lies behind it on its axis is
@@ -360,7 +362,12 @@ class Tracker:
         # past either end)
         long_px = 2.0 * (self.config.attach_max_mm / scale + 4.0)
         if attach_px is not None and self.config.attach_max_mm > 0:
-            w = [0.0 if a > long_px else v for v, a in zip(w, attach_px.tolist(), strict=True)]
+            # ... unless its touching pixel rests lower than such an edge lies (a finger whose
+            # hand is held low): then it counts attach_low_evidence at most
+            low, low_w = self.config.attach_low_mm, self.config.attach_low_evidence
+            w = [(min(v, low_w) if h <= low else 0.0) if a > long_px else v
+                 for v, a, h in zip(w, attach_px.tolist(), points.height_mm.tolist(),
+                                    strict=True)]
         step = self.config.step_max_mm
         if attach_height_mm is not None and step > 0:
             # (an unknown height, NaN, compares False: no evidence taken away)
