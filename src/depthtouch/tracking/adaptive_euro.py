@@ -75,7 +75,8 @@ class AdaptiveEuroFilter(FilterBase):
       ``land_restart_frames``, default 8), if the last K medians are flat (slope within half
       ``land_sigmas`` standard errors) and their mean lies more than ``land_restart_sigmas``
       (default 4) standard errors from the mean of the ones before, the window restarts at
-      the last K. A drag is never flat, so it never restarts.
+      the last K. This happens at most once per touch: a drag at 5-10 mm/s can look flat over
+      K frames too, and repeated restarts would hold it.
     - It ends for good at z > ``land_sigmas`` or after ``land_frames`` (default 32)
       measurements of its window; then the 1€ stage, which ran all along, is the output (or
       the lock).
@@ -114,7 +115,9 @@ class AdaptiveEuroFilter(FilterBase):
     # the 1€ stage's output (mm); the noise: the last two measurements (mm), how many were seen,
     # the noise estimate (mm RMS per axis); the stillness test: exponentially weighted sums of
     # the measurements over time (weight, Σt, Σt², Σx, Σtx; t in s relative to the last update);
-    # the lock: its mean (mm), its frame count (0 = not locked), its squared radius (mm²)
+    # the lock: its mean (mm), its frame count (0 = not locked), its squared radius (mm²);
+    # the landing: its flag, the measurement index its window starts at (0 = not restarted),
+    # the last _HB measurements (mm, s) and medians of three (mm), a ring indexed by count
     _FIELDS = {"p": (2,), "v": (2,), "dx": (2,), "e": (2,), "z1": (2,), "z2": (2,), "nz": (1,),
                "sd": (1,), "q0": (1,), "qt": (1,), "qtt": (1,), "qx": (2,), "qtx": (2,),
                "m": (2,), "n": (1,), "r2": (1,), "land": (1,), "ls": (1,),
