@@ -78,6 +78,16 @@ class RegionConfig:
     min_area_floor_px: lower bound of S_min in pixels (default 4).
     open_px: side of the square opening applied to the band mask before labelling, which removes
         one-pixel noise and depth-edge slivers (odd, default 3; 1 = off).
+    open_tip_px: the opening is used only where a fingertip (twice the tip radius) spans at
+        least this many pixels on the surface (default 5, range [0, 100]). At a coarser scale
+        the band under a finger held at a slant can be thinner than the opening, which would
+        erase the contact: structured light at 1.8 m, ToF and stereo at 1.2 m (a fingertip
+        4.3-5.0 px across) go without it.
+    block_tip_px: where the opening is not used and a fingertip still spans at least this many
+        pixels, a region must hold a 2x2 block of band pixels: lines one pixel wide (mixed
+        pixels along the edge of a finger hovering over ToF) are dropped, and no region is cut
+        (default 4, range [0, 100], at most open_tip_px; farther, ToF at 1.3-2 m, every region
+        counts).
     min_hand_mm2: a raised part not connected to the image border counts as a hand when at least
         this large (default 6000 mm^2, a palm); see handmap.hand_map.
     median_px: a median filter of this size (1 = off, 3 or 5) on every depth frame, the surface
@@ -93,6 +103,8 @@ class RegionConfig:
     min_area_mm2: float = 40.0
     min_area_floor_px: int = 4
     open_px: int = 3
+    open_tip_px: float = 5.0
+    block_tip_px: float = 4.0
     median_px: int = 3
     min_hand_mm2: float = 6000.0
 
@@ -114,6 +126,8 @@ class RegionConfig:
                 f"regions.open_px = {self.open_px!r} must be odd (a square with a centre pixel); "
                 "allowed [1, 15]: 1, 3, 5, ..."
             )
+        _range("regions.open_tip_px", self.open_tip_px, 0.0, 100.0)
+        _range("regions.block_tip_px", self.block_tip_px, 0.0, self.open_tip_px)
         _range("regions.min_hand_mm2", self.min_hand_mm2, 0.0, 1e6)
         _range("regions.median_px", self.median_px, 1, 5)
         if self.median_px not in (1, 3, 5):

@@ -213,3 +213,41 @@ def test_depth_bounds_bit_for_bit_as_numpy():
         for got, want in zip(_depth_bounds(*args), _depth_bounds_numpy(*args), strict=True):
             assert got.dtype == np.uint16
             np.testing.assert_array_equal(got, want)
+
+
+@pytest.mark.parametrize("tip_radius_mm, open_px, need_block", [
+    (7.0, 3, False),   # a fingertip 8.4 px across: the 3x3 opening
+    (4.0, 3, False),   # 4.8 px
+    (3.5, 1, True),    # 4.2 px: no opening, regions need a 2x2 block
+    (2.5, 1, False),   # 3.0 px: every region counts
+])
+def test_the_opening_follows_the_fingertips_size_in_pixels(surface, tip_radius_mm, open_px,
+                                                            need_block):
+    cfg = RegionConfig(open_tip_px=4.5, block_tip_px=3.5)
+    b = band_bounds(surface, cfg, tip_radius_mm=tip_radius_mm)
+    assert (b.open_px, b.need_block) == (open_px, need_block)
+
+
+def test_without_the_opening_one_pixel_lines_go_and_thin_slivers_stay(surface):
+    """At a coarse scale (a fingertip 4-5 px across) the 3x3 opening would erase the 2-px band
+    under a finger held at a slant; instead, a region must hold a 2x2 block, which drops the
+    one-pixel lines of mixed pixels along a finger's edge and never cuts a region."""
+    import dataclasses
+
+    b = band_bounds(surface, RegionConfig())
+    assert b.open_px == 3 and not b.need_block
+    hm = np.zeros((480, 640), np.float32)
+    hm[100:102, 100:130] = 12.0            # a sliver 2 px thick, 30 px long
+    hm[200, 100:140] = 12.0                # a line 1 px wide
+    hm[300:330, 300] = 12.0                # a line 1 px wide, upright
+    hm[300 + np.arange(25), 400 + np.arange(25)] = 12.0  # a diagonal line
+    hm[400:402, 500:520] = 12.0            # a sliver with a one-pixel tail
+    hm[402, 519:540] = 12.0
+    d = frame_with(hm, noise=0.0)
+    assert len(band_regions(d, b)) == 0    # the opening takes every one of them
+    coarse = dataclasses.replace(b, open_px=1, need_block=True)
+    r = band_regions(d, coarse)
+    assert sorted(map(tuple, r.bbox_xywh[:, :2].tolist())) == [(100, 100), (500, 400)]
+    tail = [m for m, (x, _y, _w, _h) in zip(r.masks, r.bbox_xywh) if x == 500][0]
+    assert tail.sum() == 40 + 21           # kept whole, the tail included
+    assert len(band_regions(d, dataclasses.replace(b, open_px=1))) == 5

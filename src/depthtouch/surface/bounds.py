@@ -31,7 +31,8 @@ class BandBounds:
     normals: the surface's unit normals toward the camera (H, W, 3), K its intrinsics; both None
     when K is unknown.
     tl_mm: Tl per pixel (float32), surface_units: surface depth in camera units (float32).
-    min_area_px: S_min in pixels; open_px: opening size actually used.
+    min_area_px: S_min in pixels; open_px: opening size actually used; need_block: whether a
+    region must hold a 2x2 block of band pixels (where the opening is not used).
     """
 
     band_lo: np.ndarray
@@ -50,6 +51,7 @@ class BandBounds:
     tu_mm: float
     hand_max_mm: float
     min_hand_mm2: float = 6000.0
+    need_block: bool = False
     tl_floor_mm: float = 4.0  # the lowest Tl (RegionConfig.tl_floor_mm): tl_mm = max(it, k σ)
     # Tl averaged over the valid pixels of the (2 TL_AROUND_PX + 1)² square around each pixel
     # (float32; None: not computed, tl_mm stands in)
@@ -142,14 +144,17 @@ def band_bounds(surface: SurfaceModel, config: RegionConfig, tip_radius_mm: floa
                                    cfg.hand_max_mm)
     mm_px = surface.mm_per_px()
     min_area = max(cfg.min_area_floor_px, int(round(cfg.min_area_mm2 / (mm_px * mm_px))))
-    # an opening wider than a finger would erase it: keep it only where fingers span >= 4 px
-    finger_px = 2.0 * tip_radius_mm / mm_px
-    open_px = cfg.open_px if finger_px >= cfg.open_px + 1 else 1
+    # an opening nearly as wide as a fingertip would erase the thin band under a finger held at
+    # a slant: it is kept only where a fingertip spans open_tip_px; below, down to block_tip_px,
+    # a region must hold a 2x2 block instead (one-pixel lines of mixed pixels go)
+    tip_px = 2.0 * tip_radius_mm / mm_px
+    open_px = cfg.open_px if tip_px >= cfg.open_tip_px else 1
+    need_block = open_px == 1 and cfg.open_px > 1 and tip_px >= cfg.block_tip_px
     return BandBounds(
         band_lo=bl, band_hi=bh, high_lo=hl, high_hi=hh,
         factor=f, tl_mm=tl, surface_mm=surface_mm, sigma_mm=surface.sigma_mm,
         valid=surface.valid, to_mm=to_mm, mm_per_px=mm_px, min_area_px=min_area,
-        open_px=open_px, tu_mm=cfg.tu_mm, hand_max_mm=cfg.hand_max_mm,
+        open_px=open_px, need_block=need_block, tu_mm=cfg.tu_mm, hand_max_mm=cfg.hand_max_mm,
         min_hand_mm2=cfg.min_hand_mm2, tl_floor_mm=cfg.tl_floor_mm,
         tl_around_mm=tl_around(tl, surface.valid), normals=normals,
         K=None if surface.K is None else np.asarray(surface.K, np.float64),

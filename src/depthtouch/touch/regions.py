@@ -69,6 +69,10 @@ def band_regions(depth: np.ndarray, bounds: BandBounds) -> Regions:
     The opening is done part by part: the band is eroded once, and each part left is dilated
     back within its own box; only when two parts come so close that their dilations could
     join is the whole core dilated (as runs) and its parts taken as they are.
+
+    Where the opening is not used (``bounds.need_block``: a fingertip spans too few pixels for
+    it), a part is kept only if it holds a 2x2 block: lines one pixel wide (mixed pixels along
+    a finger's edge) are dropped whole, and a part is never cut.
     """
     pad = bounds.open_px // 2  # odd (see RegionConfig.validate)
     core, runs = _band_core(depth, bounds.band_lo, bounds.band_hi, pad)
@@ -79,6 +83,9 @@ def band_regions(depth: np.ndarray, bounds: BandBounds) -> Regions:
     if pad and boxes.shape[0] > 1 and _any_close(boxes):
         boxes, areas, buf, starts = parts_of_runs(dilate_runs(runs, pad, H, W), H, W,
                                                   bounds.min_area_px, 0)
+    if bounds.need_block and boxes.shape[0]:
+        keep = _has_block(buf, starts, boxes)
+        boxes, areas, starts = boxes[keep], areas[keep], starts[keep]
     if boxes.shape[0] == 0:
         return Regions.empty()
     return Regions(boxes, areas, buf, starts, core)
@@ -157,6 +164,26 @@ def _band_core(depth: np.ndarray, lo: np.ndarray, hi: np.ndarray, pad: int
     return core, runs[:n_runs]
 
 
+@numba.njit(cache=True, nogil=True)
+def _has_block(buf: np.ndarray, starts: np.ndarray, boxes: np.ndarray) -> np.ndarray:
+    """Per part (masks in ``buf`` from ``starts``, boxes (x, y, w, h)): does it hold a 2x2
+    block of pixels?"""
+    n = boxes.shape[0]
+    out = np.zeros(n, np.bool_)
+    for i in range(n):
+        w, h = boxes[i, 2], boxes[i, 3]
+        m = buf[starts[i]:starts[i] + w * h].reshape((h, w))
+        for y in range(h - 1):
+            a, b = m[y], m[y + 1]
+            for x in range(w - 1):
+                if a[x] and a[x + 1] and b[x] and b[x + 1]:
+                    out[i] = True
+                    break
+            if out[i]:
+                break
+    return out
+
+
 def _any_close(boxes: np.ndarray) -> bool:
     """Do any two boxes (x, y, w, h) touch or overlap (8-connected)? (A few boxes: plain
     Python costs less than array calls.)"""
@@ -175,4 +202,5 @@ def warm_up() -> None:
     d = np.full((8, 8), 5, np.uint16)
     core, runs = _band_core(d, np.ones_like(d), np.full_like(d, 10), 1)
     parts_of_runs(runs, 8, 8, 1, 1)
-    parts_of_runs(dilate_runs(runs, 1, 8, 8), 8, 8, 1, 0)
+    boxes, _, buf, starts = parts_of_runs(dilate_runs(runs, 1, 8, 8), 8, 8, 1, 0)
+    _has_block(buf, starts, boxes)
