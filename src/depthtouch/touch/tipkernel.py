@@ -3,7 +3,9 @@
 The steps are those described in :mod:`depthtouch.touch.points`; here they run over all regions
 of a frame in one compiled call, each on a small window around its region: the attached hand,
 the finger's direction, the nearest-region test and the growth into the tip cap are here; the
-estimators inside a region (split, extremity, the paper's pixel) in :mod:`depthtouch.touch.fingertip`.
+estimators inside a region (split, extremity, the paper's pixel) in :mod:`depthtouch.touch.fingertip`;
+the window maps they read (heights, distances, what lies behind a tip) in
+:mod:`depthtouch.touch.tipmaps`.
 Done with numpy and OpenCV, the same work is some 150 small array calls per frame whose Python
 overhead (2-5 us each) costs more than the pixels; compiled, a frame with five touches takes
 about 0.1 ms. ``tests/reference_touchpoints.py`` keeps the array-call version, and the tests
@@ -14,7 +16,7 @@ check that both give the same points.
 Inside, the compiled kernel takes the arrays one by one and returns (N, 10) rows: x, y (image px,
 sub-pixel), height (mm, NaN when unknown), area (px), hand x, hand y (px), hand at border (0/1),
 attachment (hand pixels within 2 px of the region), their median height (mm), the spread of the
-heights behind the tip (mm, see :func:`_back_spread`).
+heights behind the tip (mm, see :func:`tipmaps.back_spread`).
 """
 
 from __future__ import annotations
@@ -26,110 +28,13 @@ import numba
 import numpy as np
 
 from .fingertip import extremity, paper, project, split
+from .tipmaps import back_spread, chamfer, near_mask, pixel_height, smooth_heights
 
 N_OUT = 10
-#: where the heights behind a tip are read (mm back along the finger's axis; the sides are
-#: read this far back and this far to either side)
-_BACK_ALONG_MM = (10.0, 15.0, 20.0, 30.0, 40.0)
-_BACK_SIDE_MM = 20.0
 #: the growth into the tip cap takes smoothed heights above this fraction of Tl (they give the
 #: tip's height); the contact point is placed on those above the firmer fraction
 _GROW_TL = 0.5
 _FIRM_TL = 0.85
-_A, _B = 0.955, 1.3693  # OpenCV's 3x3 distance-transform weights (DIST_L2, mask 3)
-_INF = 1e30
-
-
-@numba.njit(cache=True, nogil=True)
-def _near(mask: np.ndarray, r: int) -> np.ndarray:
-    """1 where a pixel of ``mask`` lies within chessboard distance ``r`` (the (2r+1)^2 square
-    around), from the mask's summed-area table: two passes whatever r."""
-    h, w = mask.shape
-    S = np.zeros((h + 1, w + 1), np.int32)
-    for y in range(h):
-        acc = 0
-        for x in range(w):
-            acc += mask[y, x] != 0
-            S[y + 1, x + 1] = S[y, x + 1] + acc
-    out = np.empty((h, w), np.uint8)
-    for y in range(h):
-        ya, yb = max(0, y - r), min(h, y + r + 1)
-        for x in range(w):
-            xa, xb = max(0, x - r), min(w, x + r + 1)
-            out[y, x] = (S[yb, xb] - S[ya, xb] - S[yb, xa] + S[ya, xa]) > 0
-    return out
-
-
-@numba.njit(cache=True, nogil=True)
-def _chamfer(mask: np.ndarray) -> np.ndarray:
-    """Approximate Euclidean distance (px) to the nearest pixel of ``mask`` (3x3 chamfer)."""
-    h, w = mask.shape
-    d = np.full((h, w), _INF, np.float64)
-    for y in range(h):
-        for x in range(w):
-            if mask[y, x]:
-                d[y, x] = 0.0
-                continue
-            v = d[y, x]
-            if x > 0:
-                v = min(v, d[y, x - 1] + _A)
-            if y > 0:
-                v = min(v, d[y - 1, x] + _A)
-                if x > 0:
-                    v = min(v, d[y - 1, x - 1] + _B)
-                if x < w - 1:
-                    v = min(v, d[y - 1, x + 1] + _B)
-            d[y, x] = v
-    for y in range(h - 1, -1, -1):
-        for x in range(w - 1, -1, -1):
-            v = d[y, x]
-            if x < w - 1:
-                v = min(v, d[y, x + 1] + _A)
-            if y < h - 1:
-                v = min(v, d[y + 1, x] + _A)
-                if x < w - 1:
-                    v = min(v, d[y + 1, x + 1] + _B)
-                if x > 0:
-                    v = min(v, d[y + 1, x - 1] + _B)
-            d[y, x] = v
-    return d
-
-
-@numba.njit(cache=True, nogil=True, inline="always")
-def _pixel_height(d: int, surf_mm: float, factor: float, to_mm: float) -> float:
-    """Height (mm) above the surface of one known pixel of depth ``d`` (camera units): the
-    kernel's form of :func:`depthtouch.surface.bounds.height_mm`."""
-    return (surf_mm - d * to_mm) * factor
-
-
-@numba.njit(cache=True, nogil=True)
-def _smooth_heights(depth: np.ndarray, surf: np.ndarray, fact: np.ndarray, valid: np.ndarray,
-                    to_mm: float, x0: int, y0: int, h: int, w: int) -> np.ndarray:
-    """Height (mm) over the window, 3x3 mean of the known pixels of the window; NaN where fewer
-    than 3 of 9 are known. (Sums over a copy with a ring of unknown pixels: no edge cases.)"""
-    hm = np.zeros((h + 2, w + 2), np.float64)
-    ok = np.zeros((h + 2, w + 2), np.float64)
-    for y in range(h):
-        dr, vr, sr, fr = depth[y0 + y], valid[y0 + y], surf[y0 + y], fact[y0 + y]
-        for x in range(w):
-            d = dr[x0 + x]
-            if d > 0 and vr[x0 + x]:
-                hm[y + 1, x + 1] = _pixel_height(d, sr[x0 + x], fr[x0 + x], to_mm)
-                ok[y + 1, x + 1] = 1.0
-    rs = np.empty((h + 2, w), np.float64)
-    rc = np.empty((h + 2, w), np.float64)
-    for y in range(h + 2):
-        a, c, sa, sc = hm[y], ok[y], rs[y], rc[y]
-        for x in range(w):
-            sa[x] = a[x] + a[x + 1] + a[x + 2]
-            sc[x] = c[x] + c[x + 1] + c[x + 2]
-    out = np.empty((h, w), np.float64)
-    for y in range(h):
-        for x in range(w):
-            num = rs[y, x] + rs[y + 1, x] + rs[y + 2, x]
-            den = rc[y, x] + rc[y + 1, x] + rc[y + 2, x]
-            out[y, x] = num / den if den >= 2.5 else np.nan  # at least 3 of 9 known
-    return out
 
 
 @numba.njit(cache=True, nogil=True)
@@ -137,9 +42,10 @@ def _attach(near: np.ndarray, depth: np.ndarray, high_lo: np.ndarray,
             high_hi: np.ndarray, hands: np.ndarray, scale: int, x0: int, y0: int,
             surf: np.ndarray, fact: np.ndarray, to_mm: float
             ) -> tuple[int, float, float, bool, float]:
-    """Hand pixels among the ``near`` pixels (those next to a mask, see :func:`_near`): count,
-    mean x, y (window), whether any belongs to an arm reaching in from the border (hand map
-    level 2), and their median height above the surface (mm)."""
+    """Hand pixels among the ``near`` pixels (those next to a mask, see
+    :func:`tipmaps.near_mask`): count, mean x, y (window), whether any belongs to an arm
+    reaching in from the border (hand map level 2), and their median height above the surface
+    (mm)."""
     h, w = near.shape
     sh, sw = hands.shape
     n = 0
@@ -159,7 +65,7 @@ def _attach(near: np.ndarray, depth: np.ndarray, high_lo: np.ndarray,
                 continue
             lev = hands[cy, cx]
             if lev >= 1:
-                hv[n] = _pixel_height(d, surf[y0 + y, x0 + x], fact[y0 + y, x0 + x], to_mm)
+                hv[n] = pixel_height(d, surf[y0 + y, x0 + x], fact[y0 + y, x0 + x], to_mm)
                 n += 1
                 sx += x
                 sy += y
@@ -168,63 +74,6 @@ def _attach(near: np.ndarray, depth: np.ndarray, high_lo: np.ndarray,
     if n == 0:
         return 0, 0.0, 0.0, False, np.nan
     return n, sx / n, sy / n, border, float(np.median(hv[:n]))
-
-
-@numba.njit(cache=True, nogil=True)
-def _height_at(depth: np.ndarray, surf: np.ndarray, fact: np.ndarray, valid: np.ndarray,
-               to_mm: float, x: float, y: float) -> float:
-    """Height (mm) at image point (x, y): the mean of the known pixels of the 3x3 around it;
-    NaN outside the image or where fewer than 3 of 9 are known."""
-    H, W = depth.shape
-    xi, yi = int(round(x)), int(round(y))
-    if xi < 1 or yi < 1 or xi > W - 2 or yi > H - 2:
-        return np.nan
-    acc = 0.0
-    n = 0
-    for yy in range(yi - 1, yi + 2):
-        for xx in range(xi - 1, xi + 2):
-            d = depth[yy, xx]
-            if d > 0 and valid[yy, xx]:
-                acc += _pixel_height(d, surf[yy, xx], fact[yy, xx], to_mm)
-                n += 1
-    return acc / n if n >= 3 else np.nan
-
-
-@numba.njit(cache=True, nogil=True)
-def _back_spread(depth: np.ndarray, surf: np.ndarray, fact: np.ndarray, valid: np.ndarray,
-                 to_mm: float, tx: float, ty: float, ux: float, uy: float, mm_px: float
-                 ) -> float:
-    """How level it is behind a tip at (tx, ty) whose finger points along (ux, uy): the spread
-    (max - min, mm) of the heights 10, 15, 20, 30 and 40 mm back on its axis, and of the one of
-    the two heights 20 mm back and 20 mm to either side that is nearer to them. A finger rises
-    behind its tip and is narrow: beside it lies the surface, so its spread is at least the
-    finger's height there (>= 12 mm, flat or steep). The top of a flat object held at Tu (a
-    book) or the flank of a resting forearm is level along the axis and on at least one side
-    (0-3 mm). NaN when fewer than 4 of the 5 heights on the axis are known."""
-    lo = np.inf
-    hi = -np.inf
-    acc = 0.0
-    n = 0
-    for a in _BACK_ALONG_MM:
-        v = _height_at(depth, surf, fact, valid, to_mm, tx - a * ux / mm_px, ty - a * uy / mm_px)
-        if v == v:
-            lo = min(lo, v)
-            hi = max(hi, v)
-            acc += v
-            n += 1
-    if n < 4:
-        return np.nan
-    mid = acc / n
-    bx, by = tx - _BACK_SIDE_MM * ux / mm_px, ty - _BACK_SIDE_MM * uy / mm_px
-    side = np.nan
-    for sgn in (-1.0, 1.0):
-        v = _height_at(depth, surf, fact, valid, to_mm, bx - sgn * _BACK_SIDE_MM * uy / mm_px,
-                       by + sgn * _BACK_SIDE_MM * ux / mm_px)
-        if v == v and not abs(side - mid) <= abs(v - mid):
-            side = v
-    if side != side:  # nothing known beside the axis: take it as not level
-        return np.inf
-    return max(hi, side) - min(lo, side)
 
 
 class KernelSurface(NamedTuple):
@@ -338,7 +187,7 @@ def _frame_points(
         if area == 0:
             continue
         # --- the hand: hand pixels next to the region (a flat object or noise has none) ----
-        near = _near(reg, 2)
+        near = near_mask(reg, 2)
         n_att, hx, hy, border, att_h = _attach(near, depth, high_lo, high_hi, hands, scale, x0,
                                                y0, surf, fact, to_mm)
         if n_att < 3:
@@ -373,7 +222,7 @@ def _frame_points(
             band = _band_near(core, open_pad, reg, x0, y0, ox0, oy0, ox1, oy1, n_parts > 1)
         else:  # alone in the frame: specks of noise nearby do not count
             band = np.zeros((0, 0), np.uint8)
-        hs = _smooth_heights(depth, surf, fact, valid, to_mm, x0, y0, h, w)
+        hs = smooth_heights(depth, surf, fact, valid, to_mm, x0, y0, h, w)
         for p in range(n_parts):
             part = np.zeros((h, w), np.uint8)
             n_p = 0
@@ -389,7 +238,7 @@ def _frame_points(
                 continue
             phx, phy, pborder, patt = hx, hy, border, n_att
             if n_parts > 1:
-                na, ax, ay, ab, _ = _attach(_near(part, 2), depth, high_lo, high_hi, hands,
+                na, ax, ay, ab, _ = _attach(near_mask(part, 2), depth, high_lo, high_hi, hands,
                                             scale, x0, y0, surf, fact, to_mm)
                 if na >= 3:
                     phx, phy, pborder = ax, ay, ab
@@ -418,7 +267,7 @@ def _frame_points(
             out[n_out, 6] = 1.0 if pborder else 0.0
             out[n_out, 7] = patt
             out[n_out, 8] = att_h
-            out[n_out, 9] = (_back_spread(depth, surf, fact, valid, to_mm, px_ + x0, py_ + y0,
+            out[n_out, 9] = (back_spread(depth, surf, fact, valid, to_mm, px_ + x0, py_ + y0,
                                           ddx / nn, ddy / nn, mm_px) if nn > 1e-6 else np.nan)
             n_out += 1
             if n_out == out.shape[0]:
@@ -482,8 +331,8 @@ def _own(part: np.ndarray, band: np.ndarray, dx: int, dy: int) -> np.ndarray:
                 n_o += 1
     if n_o == 0:
         return own
-    d_own = _chamfer(mine)
-    d_oth = _chamfer(others)
+    d_own = chamfer(mine)
+    d_oth = chamfer(others)
     for y in range(h):
         for x in range(w):
             own[y, x] = d_own[y + dy, x + dx] <= d_oth[y + dy, x + dx]
@@ -498,7 +347,7 @@ def _grow(part: np.ndarray, own: np.ndarray, hs: np.ndarray, tl: np.ndarray, x0:
     each is firm: in the part, or raised above ``_FIRM_TL`` Tl (the others are the faint rim
     above ``_GROW_TL`` Tl, see :func:`fingertip.extremity`)."""
     h, w = part.shape
-    reach = _near(part, 2 * rr)
+    reach = near_mask(part, 2 * rr)
     grown = np.zeros((h, w), np.uint8)
     for y in range(h):
         for x in range(w):
