@@ -24,13 +24,15 @@ pytest.importorskip("depthtouch.sim")
 # 6.88 mm, jitter 1.13 mm, angle error 3.82 deg over 3-frame steps, recall under drift 0.938,
 # touch-down latency median 0 frames; session 14, the landing on medians: jitter 0.922 mm,
 # error p95 6.93 mm, angle 3.89 deg, the rest unchanged; then tracking.attach_low_mm: recall
-# 0.934, jitter 0.915 mm, p95 6.91 mm, the rest unchanged); "max" floors are upper bounds. Some
+# 0.934, jitter 0.915 mm, p95 6.91 mm, the rest unchanged; session 15, the opening by the
+# fingertip's size in pixels: recall 0.946, 0 id switches, p95 7.04 mm, angle 4.07 deg, the rest
+# unchanged); "max" floors are upper bounds. Some
 # are short of issue 13's targets: they guard against regressions, see docs/accuracy.md.
-FLOORS_MIN: dict[str, float] = {"recall_working": 0.92, "recall_drift": 0.93}
+FLOORS_MIN: dict[str, float] = {"recall_working": 0.94, "recall_drift": 0.93}
 FLOORS_MAX: dict[str, float] = {
     "false_per_min": 2.6,
     "false_from_hover_25mm": 0,
-    "id_switches": 2,
+    "id_switches": 1,
     "error_median_mm": 1.7,
     "error_p95_mm": 7.3,
     "jitter_rms_mm": 1.0,
