@@ -335,9 +335,9 @@ class Tracker:
         whose attached hand pixels lie higher than ``step_max_mm`` (a finger rises from the band
         gradually; mixed pixels at the side of a raised hand jump), and so does one with level
         heights behind it (``flat_max_mm``: the top of a held book, the flank of a forearm; a
-        finger rises and is narrow), and so does a point on the axis of another point low enough to go down,
-        behind it (``behind_lat_mm``: a finger has one tip; what lies behind it on its axis is
-        the finger's flank). The top of a steep finger (``steep``) counts ``steep_evidence``
+        finger rises and is narrow), and so does a point on the axis of another point low
+        enough to go down, behind it (``behind_lat_mm``: a finger has one tip; what lies behind
+        it on its axis is the finger's flank). The top of a steep finger (``steep``) counts ``steep_evidence``
         instead of the size test's weight and is exempt from the step and flat tests. Without a
         scale (no intrinsics) every frame counts whole.
         """
