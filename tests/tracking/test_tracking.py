@@ -296,6 +296,29 @@ def test_down_needs_evidence_by_size(area_px: float, down_at: int) -> None:
     assert first == down_at
 
 
+@pytest.mark.parametrize(("scale", "area_px", "down_at"), [
+    (5.4, 6, 5),     # a ToF camera at 2 m: a 6-px speck (175 mm^2) is weak, in pixels
+    (5.4, 15, 5),
+    (5.4, 16, 2),    # 16 px or more is a fingertip's region there ...
+    (5.4, 45, 2),    # ... though 45 px (1310 mm^2) is far above the mm^2 range
+    (5.4, 80, 2),
+    (5.4, 81, 5),
+    (2.0, 30, 5),    # near (2 mm/px) the mm^2 range rules: 120 mm^2 is a speck ...
+    (2.0, 40, 2),    # ... 160 mm^2 a fingertip
+    (2.0, 190, 5),   # 760 mm^2: a hovering finger, though under 80 px
+])
+def test_the_size_range_holds_in_pixels_where_pixels_are_large(scale: float, area_px: int,
+                                                                down_at: int) -> None:
+    tr = Tracker(TrackingConfig(down_frames=2), scale_mm_per_px=scale)
+    states = [[s for _, s in f] for f in run(tr, [_tip(area_px)] * 6)]
+    assert next(i for i, f in enumerate(states) if f == ["down"]) + 1 == down_at
+    off = Tracker(TrackingConfig(down_frames=2, tip_area_min_px=0.0, tip_area_max_px=0.0),
+                  scale_mm_per_px=scale)
+    mm2_only = 150.0 <= area_px * scale * scale <= 750.0
+    states = [[s for _, s in f] for f in run(off, [_tip(area_px)] * 6)]
+    assert next(i for i, f in enumerate(states) if f == ["down"]) + 1 == (2 if mm2_only else 5)
+
+
 def test_a_blip_off_size_never_goes_down_and_its_evidence_does_not_carry() -> None:
     # four frames of a speck, two frames without it, four more: its evidence is gone
     tr = Tracker(TrackingConfig(down_frames=2), scale_mm_per_px=1.0)

@@ -6,7 +6,8 @@ first, then pending ones on the points left. Fingertips side by side whose regio
 point (a region about twice a tip's area) keep their ids and move with that point, each at its
 place in the pair; a contact hidden in a neighbour's region is held. A new contact goes
 ``down`` once its evidence reaches ``down_frames``: frames, each counting 1 when its region has
-a fingertip's area in mm² and ``weak_evidence`` otherwise (a speck at a finger's edge, a
+a fingertip's area (in mm², and in pixels where pixels are large) and ``weak_evidence``
+otherwise (a speck at a finger's edge, a
 hovering finger or a forearm's edge lying in the band), nothing when it lies behind another
 point on that point's finger (one finger, one tip), and ``steep_evidence`` when it looks like
 the top of a finger standing almost upright (see TrackingConfig); a pending contact survives
@@ -325,7 +326,8 @@ class Tracker:
                           ok_new: list[bool], steep: list[bool]) -> list[float]:
         """How much one frame of each point counts toward ``down`` (see TrackingConfig).
 
-        A region of a fingertip's size (``tip_area_mm2`` range) counts a whole frame; a smaller
+        A region of a fingertip's size (at least ``tip_area_min_mm2`` and ``tip_area_min_px``,
+        at most ``tip_area_max_mm2`` or ``tip_area_max_px``) counts a whole frame; a smaller
         one (a speck of noise at a finger's edge, a tip only grazing the band) or a larger one
         (a hovering finger or a forearm's edge lying in the band) counts ``weak_evidence``, so it
         must persist for more frames before it is believed. A region attached to its hand along
@@ -351,9 +353,10 @@ class Tracker:
         if weak >= 1.0:
             w = [1.0] * n
         else:
-            lo, hi = self.config.tip_area_min_mm2, self.config.tip_area_max_mm2
             px_mm2 = scale * scale
-            w = [1.0 if lo <= a * px_mm2 <= hi else weak for a in area_px]
+            lo = max(self.config.tip_area_min_mm2 / px_mm2, self.config.tip_area_min_px)
+            hi = max(self.config.tip_area_max_mm2 / px_mm2, self.config.tip_area_max_px)
+            w = [1.0 if lo <= a <= hi else weak for a in area_px]
         if any(steep):
             w = [steep_w if s else v for v, s in zip(w, steep, strict=True)]
         # the attachment counts the hand pixels within 2 px of the region: an attachment w mm
