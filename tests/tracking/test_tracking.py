@@ -361,10 +361,12 @@ def test_a_pending_contact_held_in_a_gap_reports_nothing() -> None:
 
 
 def _finger(scale: float, *tips: tuple[float, float, float, float]) -> TouchPoints:
-    """Fingertip-sized points (300 mm^2) at (x, y) px with their hand at (hx, hy) px."""
+    """Fingertip-sized points (300 mm^2, at least 20 px) at (x, y) px with their hand at
+    (hx, hy) px."""
     a = np.array(tips, np.float64)
     n = len(a)
-    return TouchPoints(a[:, :2], np.full(n, 5.0), np.full(n, round(300 / scale**2)), a[:, 2:4],
+    area = max(round(300 / scale**2), 20)
+    return TouchPoints(a[:, :2], np.full(n, 5.0), np.full(n, area), a[:, 2:4],
                        None,
                        np.full(n, 10), np.full(n, 35.0), np.full(n, 25.0))
 
