@@ -26,11 +26,12 @@ pytest.importorskip("depthtouch.sim")
 # error p95 6.93 mm, angle 3.89 deg, the rest unchanged; then tracking.attach_low_mm: recall
 # 0.934, jitter 0.915 mm, p95 6.91 mm, the rest unchanged; session 15, the opening by the
 # fingertip's size in pixels: recall 0.946, 0 id switches, p95 7.04 mm, angle 4.07 deg, the rest
-# unchanged); "max" floors are upper bounds. Some
+# unchanged; session 16, the fingertip's area in pixels at range: 1.12 false touches per minute,
+# jitter 0.884 mm, the rest unchanged); "max" floors are upper bounds. Some
 # are short of issue 13's targets: they guard against regressions, see docs/accuracy.md.
 FLOORS_MIN: dict[str, float] = {"recall_working": 0.94, "recall_drift": 0.93}
 FLOORS_MAX: dict[str, float] = {
-    "false_per_min": 2.6,
+    "false_per_min": 1.5,
     "false_from_hover_25mm": 0,
     "id_switches": 1,
     "error_median_mm": 1.7,
