@@ -7,13 +7,13 @@ point (a region about twice a tip's area) keep their ids and move with that poin
 place in the pair; a contact hidden in a neighbour's region is held. A new contact goes
 ``down`` once its evidence reaches ``down_frames``: frames, each counting 1 when its region has
 a fingertip's area (in mm², and in pixels where pixels are large) and ``weak_evidence``
-otherwise (a speck at a finger's edge, a
-hovering finger or a forearm's edge lying in the band), nothing when it lies behind another
-point on that point's finger (one finger, one tip), and ``steep_evidence`` when it looks like
-the top of a finger standing almost upright (see TrackingConfig); a pending contact survives
-``pending_gap_frames`` frames without a point, its evidence fading; a contact missing for
-``up_frames`` consecutive frames goes ``up`` with its last position (it is reported as ``move``
-at that position during the grace frames). Height hysteresis: a tip must come below
+otherwise (a speck at a finger's edge, a hovering finger or a forearm's edge lying in the band),
+nothing when it lies behind another point on that point's finger (one finger, one tip), and
+``steep_evidence`` when it looks like the top of a finger standing almost upright (see
+TrackingConfig); a pending contact survives ``pending_gap_frames`` frames without a point, its
+evidence fading; a contact missing for ``up_frames`` consecutive frames goes ``up`` with its
+last position (it is reported as ``move`` at that position during the grace frames). Height
+hysteresis: a tip must come below
 ``touch_on_mm`` to start a contact, and a contact lasts while its tip stays below
 ``touch_off_mm``, so that a finger resting at the noise limit does not flicker. Ids are never
 reused within a run.
