@@ -13,10 +13,9 @@ nothing when it lies behind another point on that point's finger (one finger, on
 TrackingConfig); a pending contact survives ``pending_gap_frames`` frames without a point, its
 evidence fading; a contact missing for ``up_frames`` consecutive frames goes ``up`` with its
 last position (it is reported as ``move`` at that position during the grace frames). Height
-hysteresis: a tip must come below
-``touch_on_mm`` to start a contact, and a contact lasts while its tip stays below
-``touch_off_mm``, so that a finger resting at the noise limit does not flicker. Ids are never
-reused within a run.
+hysteresis: a tip must come below ``touch_on_mm`` to start a contact, and a contact lasts while
+its tip stays below ``touch_off_mm``, so that a finger resting at the noise limit does not
+flicker. Ids are never reused within a run.
 """
 
 from __future__ import annotations
