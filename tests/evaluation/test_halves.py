@@ -55,6 +55,26 @@ def test_check_set_is_the_hard_suite_with_fresh_seeds() -> None:
     assert {c.group for c in fresh} == {c.group for c in hard}
 
 
+def test_extra_seeds_are_new_recordings_of_four_hard_situations_on_both_halves() -> None:
+    """hard-extra: situations of hard (scene, camera, placement), none of its or hard-fresh's
+    recordings, every group on both halves."""
+    known = load_suite("hard").cases + load_suite("hard-fresh").cases
+    extra = load_suite("hard-extra").cases
+
+    def recording(c: SuiteCase) -> tuple[Any, ...]:
+        return dataclasses.astuple(dataclasses.replace(c, group=""))
+
+    def situation(c: SuiteCase) -> tuple[Any, ...]:
+        return recording(dataclasses.replace(c, seed=0))
+
+    assert not {recording(c) for c in extra} & {recording(c) for c in known}
+    assert {situation(c) for c in extra} <= {situation(c) for c in known}
+    assert {c.group for c in extra} == {"still-finger", "forearm-rest", "hovering-fingers",
+                                        "drift"}
+    tune, held = select_half(extra, "tune"), select_half(extra, "held-out")
+    assert {c.group for c in tune} == {c.group for c in held}
+
+
 def test_half_depends_on_seed_and_placement_only() -> None:
     a = SuiteCase("approach", "kinect-v2-hard", 2.0, tilt_deg=30.0, seed=3, group="x")
     assert half_of(a) == half_of(dataclasses.replace(a, scene="rest", group="y", fps=15.0))
