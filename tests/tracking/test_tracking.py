@@ -321,11 +321,13 @@ def test_the_size_range_holds_in_pixels_where_pixels_are_large(scale: float, are
 
 def test_a_blip_off_size_never_goes_down_and_its_evidence_does_not_carry() -> None:
     # four frames of a speck, two frames without it, four more: its evidence is gone
-    tr = Tracker(TrackingConfig(down_frames=2), scale_mm_per_px=1.0)
+    # (pending_low_mm off: test_a_low_tip_that_flickers_is_kept_longer_where_pixels_are_small)
+    tr = Tracker(TrackingConfig(down_frames=2, pending_low_mm=0.0), scale_mm_per_px=1.0)
     frames = [_tip(40)] * 4 + [pts(), pts()] + [_tip(40)] * 4
     assert all(f == [] for f in run(tr, frames))
     # without the pending gap, one frame without it is enough: never 5 in a row
-    tr = Tracker(TrackingConfig(down_frames=2, pending_gap_frames=0), scale_mm_per_px=1.0)
+    tr = Tracker(TrackingConfig(down_frames=2, pending_gap_frames=0, pending_low_mm=0.0),
+                 scale_mm_per_px=1.0)
     frames = [_tip(40)] * 4 + [pts()] + [_tip(40)] * 4
     assert all(f == [] for f in run(tr, frames))
 
@@ -343,8 +345,8 @@ def test_a_blip_off_size_never_goes_down_and_its_evidence_does_not_carry() -> No
 ])
 def test_a_pending_contact_survives_a_gap_with_fading_evidence(
         gap: int, decay: float, frames: list[str], down_at: int | None) -> None:
-    tr = Tracker(TrackingConfig(down_frames=2, pending_gap_frames=gap, pending_decay=decay),
-                 scale_mm_per_px=1.0)
+    tr = Tracker(TrackingConfig(down_frames=2, pending_gap_frames=gap, pending_decay=decay,
+                                pending_low_mm=0.0), scale_mm_per_px=1.0)
     out = run(tr, [_tip(300) if f == "tip" else pts() for f in frames])
     downs = [i + 1 for i, f in enumerate(out) if any(s == "down" for _, s in f)]
     assert downs == ([] if down_at is None else [down_at])
@@ -353,8 +355,27 @@ def test_a_pending_contact_survives_a_gap_with_fading_evidence(
         assert out[down_at - 1] == [(1, "down")]
 
 
+@pytest.mark.parametrize(("scale", "h", "down"), [
+    (2.7, 4.0, True),    # a steep tip at ToF 1 m: 3-5 mm up, back within a pixel every 2-6 frames
+    (2.7, 7.0, False),   # higher than pending_low_mm: dropped after one missing frame, as before
+    (5.4, 4.0, False),   # ToF 2 m: specks lie as low as tips there; the size test is in px
+])
+def test_a_low_tip_that_flickers_is_kept_longer_where_pixels_are_small(
+        scale: float, h: float, down: bool) -> None:
+    # a region under a tip's area (0.4 a frame), seen every other frame, 12 times
+    small = 100 / scale**2  # 100 mm^2, under tip_area_min_mm2
+    frames = [_tip(small, h), pts()] * 12
+    tr = Tracker(TrackingConfig(down_frames=2), scale_mm_per_px=scale)
+    out = run(tr, frames)
+    assert any(s == "down" for f in out for _, s in f) is down
+    if down:  # 0.4, then 0.4 + 0.9 * 0.4 ...: the seventh sighting makes 2 (at 0.75, never)
+        first = next(i for i, f in enumerate(out) if f)
+        assert first == 12 and out[first] == [(1, "down")]
+
+
 def test_a_pending_contact_held_in_a_gap_reports_nothing() -> None:
-    tr = Tracker(TrackingConfig(down_frames=2, pending_gap_frames=1), scale_mm_per_px=1.0)
+    tr = Tracker(TrackingConfig(down_frames=2, pending_gap_frames=1, pending_low_mm=0.0),
+                 scale_mm_per_px=1.0)
     assert run(tr, [_tip(300), pts()]) == [[], []]
     assert len(tr.tracks) == 1 and not tr.tracks[0].active
     assert run(tr, [pts()]) == [[]] and tr.tracks == []
@@ -414,7 +435,8 @@ def test_a_tip_too_high_to_go_down_makes_nothing_behind_it() -> None:
 def test_behind_and_gap_settings_are_validated() -> None:
     from depthtouch.errors import ConfigError
     for kw in ({"behind_lat_mm": -1.0}, {"behind_lat_px": 11.0}, {"pending_gap_frames": -1},
-               {"pending_decay": 1.5}):
+               {"pending_decay": 1.5}, {"pending_low_mm": -1.0}, {"pending_low_gap_frames": 11},
+               {"pending_low_decay": 1.5}):
         with pytest.raises(ConfigError, match="tracking"):
             TrackingConfig(**kw).validate()  # type: ignore[arg-type]
 

@@ -11,11 +11,12 @@ otherwise (a speck at a finger's edge, a hovering finger or a forearm's edge lyi
 nothing when it lies behind another point on that point's finger (one finger, one tip), and
 ``steep_evidence`` when it looks like the top of a finger standing almost upright (see
 TrackingConfig); a pending contact survives ``pending_gap_frames`` frames without a point, its
-evidence fading; a contact missing for ``up_frames`` consecutive frames goes ``up`` with its
-last position (it is reported as ``move`` at that position during the grace frames). Height
-hysteresis: a tip must come below ``touch_on_mm`` to start a contact, and a contact lasts while
-its tip stays below ``touch_off_mm``, so that a finger resting at the noise limit does not
-flicker. Ids are never reused within a run.
+evidence fading (``pending_low_gap_frames`` when its tip was low, where pixels are small); a
+contact missing for ``up_frames`` consecutive frames goes ``up`` with its last position (it is
+reported as ``move`` at that position during the grace frames). Height hysteresis: a tip must
+come below ``touch_on_mm`` to start a contact, and a contact lasts while its tip stays below
+``touch_off_mm``, so that a finger resting at the noise limit does not flicker.
+Ids are never reused within a run.
 """
 
 from __future__ import annotations
@@ -247,6 +248,7 @@ class Tracker:
                 shift[i] = (k, step)
         down_frames = self.config.down_frames
         weight = self._evidence_weights(points, xy, area, ok_new, steep)
+        gap, decay, low_mm, low_gap, low_decay = self._pending_gaps()
         for i, t in enumerate(tracks):
             j = matched_t.get(i)
             if i in shift:
@@ -302,11 +304,12 @@ class Tracker:
                 else:
                     out.append(TrackUpdate(t, "move", False))
                     keep.append(t)
-            elif t.missing < self.config.pending_gap_frames:
+            elif t.missing < (low_gap if t.height_mm <= low_mm else gap):
                 # a pending contact unseen this frame (a tip at the band's edge at range flickers
                 # in and out of it): kept, its evidence fading, for pending_gap_frames frames
+                # (pending_low_gap_frames when its tip was low, where pixels are small)
                 t.missing += 1
-                t.evidence *= self.config.pending_decay
+                t.evidence *= low_decay if t.height_mm <= low_mm else decay
                 keep.append(t)
             # otherwise an unmatched pending track is dropped (it never went down)
         for j in range(n_p):
@@ -320,6 +323,20 @@ class Tracker:
             keep.append(t)
         self.tracks = keep
         return out
+
+    def _pending_gaps(self) -> tuple[int, float, float, int, float]:
+        """(gap, decay, low_mm, low_gap, low_decay) for pending contacts without a point: a
+        tip at most low_mm up gets low_gap frames at low_decay (TrackingConfig.pending_low_*),
+        where pixels are small enough for the size test to work in mm; elsewhere low_mm is
+        -inf (no tip is that low)."""
+        c = self.config
+        low = c.pending_low_mm if c.pending_low_mm > 0 else -math.inf
+        scale = self.scale_mm_per_px
+        if scale is None or c.tip_area_min_px <= 0 or (
+                c.tip_area_min_mm2 / (scale * scale) < c.tip_area_min_px):
+            low = -math.inf
+        return (c.pending_gap_frames, c.pending_decay, low, c.pending_low_gap_frames,
+                c.pending_low_decay)
 
     def _evidence_weights(self, points: TouchPoints, xy: list[XY], area_px: list[int],
                           ok_new: list[bool], steep: list[bool]) -> list[float]:
