@@ -248,7 +248,7 @@ class Tracker:
                 shift[i] = (k, step)
         down_frames = self.config.down_frames
         weight = self._evidence_weights(points, xy, area, ok_new, steep)
-        gap, decay, low_mm, low_gap, low_decay = self._pending_gaps()
+        cfg, low_mm = self.config, self._pending_low_mm()
         for i, t in enumerate(tracks):
             j = matched_t.get(i)
             if i in shift:
@@ -304,12 +304,14 @@ class Tracker:
                 else:
                     out.append(TrackUpdate(t, "move", False))
                     keep.append(t)
-            elif t.missing < (low_gap if t.height_mm <= low_mm else gap):
+            elif t.missing < (cfg.pending_low_gap_frames if t.height_mm <= low_mm
+                              else cfg.pending_gap_frames):
                 # a pending contact unseen this frame (a tip at the band's edge at range flickers
                 # in and out of it): kept, its evidence fading, for pending_gap_frames frames
                 # (pending_low_gap_frames when its tip was low, where pixels are small)
                 t.missing += 1
-                t.evidence *= low_decay if t.height_mm <= low_mm else decay
+                t.evidence *= (cfg.pending_low_decay if t.height_mm <= low_mm
+                               else cfg.pending_decay)
                 keep.append(t)
             # otherwise an unmatched pending track is dropped (it never went down)
         for j in range(n_p):
@@ -324,19 +326,14 @@ class Tracker:
         self.tracks = keep
         return out
 
-    def _pending_gaps(self) -> tuple[int, float, float, int, float]:
-        """(gap, decay, low_mm, low_gap, low_decay) for pending contacts without a point: a
-        tip at most low_mm up gets low_gap frames at low_decay (TrackingConfig.pending_low_*),
-        where pixels are small enough for the size test to work in mm; elsewhere low_mm is
-        -inf (no tip is that low)."""
-        c = self.config
-        low = c.pending_low_mm if c.pending_low_mm > 0 else -math.inf
-        scale = self.scale_mm_per_px
-        if scale is None or c.tip_area_min_px <= 0 or (
-                c.tip_area_min_mm2 / (scale * scale) < c.tip_area_min_px):
-            low = -math.inf
-        return (c.pending_gap_frames, c.pending_decay, low, c.pending_low_gap_frames,
-                c.pending_low_decay)
+    def _pending_low_mm(self) -> float:
+        """How low a pending contact's tip must be for pending_low_gap_frames (mm; -inf where
+        pixels are too large for the size test to work in mm, or with pending_low_mm 0)."""
+        c, scale = self.config, self.scale_mm_per_px
+        if (c.pending_low_mm <= 0 or scale is None or c.tip_area_min_px <= 0
+                or c.tip_area_min_mm2 / (scale * scale) < c.tip_area_min_px):
+            return -math.inf
+        return c.pending_low_mm
 
     def _evidence_weights(self, points: TouchPoints, xy: list[XY], area_px: list[int],
                           ok_new: list[bool], steep: list[bool]) -> list[float]:
