@@ -55,7 +55,7 @@ def test_check_set_is_the_hard_suite_with_fresh_seeds() -> None:
     assert {c.group for c in fresh} == {c.group for c in hard}
 
 
-def test_extra_seeds_are_new_recordings_of_four_hard_situations_on_both_halves() -> None:
+def test_extra_seeds_are_new_recordings_of_five_hard_situations_on_both_halves() -> None:
     """hard-extra: situations of hard (scene, camera, placement), none of its or hard-fresh's
     recordings, every group on both halves."""
     known = load_suite("hard").cases + load_suite("hard-fresh").cases
@@ -70,7 +70,7 @@ def test_extra_seeds_are_new_recordings_of_four_hard_situations_on_both_halves()
     assert not {recording(c) for c in extra} & {recording(c) for c in known}
     assert {situation(c) for c in extra} <= {situation(c) for c in known}
     assert {c.group for c in extra} == {"still-finger", "forearm-rest", "hovering-fingers",
-                                        "drift"}
+                                        "drift", "object-handled"}
     tune, held = select_half(extra, "tune"), select_half(extra, "held-out")
     assert {c.group for c in tune} == {c.group for c in held}
 

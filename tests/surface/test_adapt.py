@@ -73,6 +73,28 @@ def test_finger_held_still_ten_seconds_is_never_absorbed():
     assert last and np.hypot(last[0].x - f.x, last[0].y - f.y) * MM_PER_PX < 3.0
 
 
+@pytest.mark.parametrize("shadow", [True, False])
+def test_a_hand_whose_arm_enters_across_the_band_without_depth_is_never_absorbed(shadow):
+    """A stereo camera's first 24 columns have no depth (unusable, learned so). A hand hovers
+    15 mm up for 5 s, its arm reaching to the left across that band, a shadow without depth
+    along the band's edge (8 columns) or none; then its finger lands: one touch, and the
+    surface under the hand stayed the table."""
+    hover = render_heights((480, 640), [Finger(320, 240, 180, gap_mm=15.0)], MM_PER_PX)
+    touch = render_heights((480, 640), [Finger(320, 240, 180)], MM_PER_PX)
+    script = [lambda k: hover] * int(5 * FPS) + [lambda k: touch] * int(1 * FPS)
+    p = Pipeline(surface_frames=45)
+    events = []
+    for f in frames(script):
+        d = f.depth.copy()
+        d[:, :24] = 0
+        if shadow and f.index >= 45:
+            d[180:300, 24:32] = 0
+        events += p.process(Frame(d, f.timestamp_s, f.index, f.depth_scale_m, f.K)).events
+    hand = p.surface.bounds.surface_mm[225:255, 340:400]  # under the hand
+    assert abs(float(np.median(hand)) - 1000.0) < 3.0
+    assert [e.state for e in events].count("down") == 1
+
+
 def test_slow_drift_is_absorbed():
     # the table comes 3 mm closer over 10 s (a thermal drift is slower still), then stays
     n_drift = int(10 * FPS)
@@ -138,7 +160,8 @@ def test_coarse_view_samples_the_pixels_opencv_nearest_resize_takes(h, w):
 
 def _exclusions_opencv(adapter, depth, touch_xy_px):
     """The exclusion map as OpenCV array calls (the compiled version's oracle): changes at 1/4
-    resolution connected to the border, dilated, and discs around the touches; full size."""
+    resolution (missing depth over a usable pixel included) connected to the border or to the
+    unusable pixels that reach it, dilated, and discs around the touches; full size."""
     import cv2
 
     b, scale = adapter.bounds, 4
@@ -148,14 +171,19 @@ def _exclusions_opencv(adapter, depth, touch_xy_px):
     ds *= np.float32(b.to_mm)
     ss = cv2.resize(b.surface_mm, (sw, sh), interpolation=cv2.INTER_NEAREST)
     tl = cv2.resize(b.tl_mm, (sw, sh), interpolation=cv2.INTER_NEAREST)
-    ok = (ds > 0) & (cv2.resize(b.valid.view(np.uint8), (sw, sh),
-                                 interpolation=cv2.INTER_NEAREST) > 0)
-    changed = (ok & (np.abs(ss - ds) > tl)).astype(np.uint8)
-    _, labels, stats, _ = cv2.connectedComponentsWithStats(changed, connectivity=8)
-    x, y, bw, bh = stats[:, 0], stats[:, 1], stats[:, 2], stats[:, 3]
-    border = (x == 0) | (y == 0) | (x + bw >= sw) | (y + bh >= sh)
-    border[0] = False
-    excl = cv2.dilate(border[labels].astype(np.uint8), np.ones((3, 3), np.uint8))
+    ok = cv2.resize(b.valid.view(np.uint8), (sw, sh), interpolation=cv2.INTER_NEAREST) > 0
+    changed = ok & ((ds == 0) | (np.abs(ss - ds) > tl))
+
+    def at_border(mask):
+        _, labels, stats, _ = cv2.connectedComponentsWithStats(mask.astype(np.uint8),
+                                                               connectivity=8)
+        x, y, bw, bh = stats[:, 0], stats[:, 1], stats[:, 2], stats[:, 3]
+        border = (x == 0) | (y == 0) | (x + bw >= sw) | (y + bh >= sh)
+        border[0] = False
+        return border[labels]
+
+    people = at_border(changed | at_border(~ok)) & changed
+    excl = cv2.dilate(people.astype(np.uint8), np.ones((3, 3), np.uint8))
     r = max(1, int(round(adapter.config.keep_out_mm / b.mm_per_px / scale)))
     for x_px, y_px in touch_xy_px:
         cv2.circle(excl, (int(x_px / scale), int(y_px / scale)), r, 1, thickness=-1)

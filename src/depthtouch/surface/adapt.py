@@ -14,7 +14,10 @@ horizontal stripe of the image per frame (so the cost is spread evenly):
 - never absorbed: anything connected to a change that reaches the image border (a hand is
   attached to an arm that enters from outside the view, and the arm rises above the band), and
   anything within ``keep_out_mm`` of an active touch. A finger held still for minutes stays a
-  finger;
+  finger. A pixel that lost its depth over a usable surface pixel is a change too (an arm
+  nearer than the camera measures, the shadow along its edge), and the unusable pixels that
+  reach the image border (a stereo camera's band without depth on its left) are outside the
+  view: an arm that enters across them reaches the border;
 - when more than ``bump_fraction`` of the surface changes at once, touches are off; when it
   stays so, still, for ``bump_s``, the camera has moved: :meth:`SurfaceAdapter.check` says
   ``"bump"`` and the pipeline learns the surface again.
@@ -69,6 +72,9 @@ class SurfaceAdapter:
         view = np.ix_(self._view_y, self._view_x)
         self._view_tl = np.ascontiguousarray(self.bounds.tl_mm[view])
         self._view_ok = np.ascontiguousarray(self.bounds.valid[view])
+        # the unusable pixels that reach the image border: outside the view, as the border is
+        self._outside = (part_levels((~self._view_ok).view(np.uint8), 1.0, math.inf) == 2).view(
+            np.uint8)
         self._exclude = np.zeros((sh, sw), np.uint8)
         self._bump_since: float | None = None
         # the bump check's 1/8 views: of the surface (refreshed each stripe cycle) and of the
@@ -192,8 +198,11 @@ class SurfaceAdapter:
         cfg, b = self.config, self.bounds
         changed = _changed_view(depth, b.surface_mm, self._view_tl, self._view_ok, self._view_y,
                                 self._view_x, float(b.to_mm))
-        # Changes connected to the image border are people: never absorbed.
-        excl = dilate3x3((part_levels(changed, 1.0, math.inf) == 2).view(np.uint8))
+        # Changes connected to the image border are people: never absorbed. A stereo camera's
+        # band without depth is outside the view too: a hand whose arm enters across it (and
+        # whose shadow, without depth, separates it from the rest) is still a person's.
+        lev = part_levels(changed | self._outside, 1.0, math.inf)
+        excl = dilate3x3(((lev == 2) & (changed > 0)).view(np.uint8))
         if len(touch_xy_px):
             r = max(1, int(round(cfg.keep_out_mm / b.mm_per_px / _SCALE)))
             for x_px, y_px in np.asarray(touch_xy_px, np.float64):
@@ -228,9 +237,9 @@ def _upsample(small: np.ndarray, up_y: np.ndarray, up_x: np.ndarray) -> np.ndarr
 def _changed_view(depth: np.ndarray, surface_mm: np.ndarray, view_tl: np.ndarray,
                   view_ok: np.ndarray, view_y: np.ndarray, view_x: np.ndarray, to_mm: float
                   ) -> np.ndarray:
-    """The 1/4 view of what differs from the surface by more than Tl (uint8 0/1): the pixels
-    (view_y[j], view_x[i]) of the frame and the surface; ``view_tl`` and ``view_ok`` are Tl and
-    the usable mask at the same pixels."""
+    """The 1/4 view of what differs from the surface by more than Tl, or has no depth where the
+    surface is usable (uint8 0/1): the pixels (view_y[j], view_x[i]) of the frame and the
+    surface; ``view_tl`` and ``view_ok`` are Tl and the usable mask at the same pixels."""
     sh, sw = view_y.shape[0], view_x.shape[0]
     out = np.zeros((sh, sw), np.uint8)
     t = np.float32(to_mm)
@@ -239,7 +248,7 @@ def _changed_view(depth: np.ndarray, surface_mm: np.ndarray, view_tl: np.ndarray
         for i in range(sw):
             x = view_x[i]
             d = np.float32(dr[x]) * t
-            if d > 0 and okr[i] and abs(sr[x] - d) > tr[i]:
+            if okr[i] and (d == 0 or abs(sr[x] - d) > tr[i]):
                 out[j, i] = 1
     return out
 
