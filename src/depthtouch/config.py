@@ -412,6 +412,13 @@ class AdaptConfig:
     bump_s: how long such a change must stay, still, before the surface is learned again
         (default 0.5 s).
     keep_out_mm: nothing within this distance of an active touch is absorbed (default 80 mm).
+    edge_outside: when deciding what is a person (a change connected to the image border, never
+        absorbed), the unusable pixels that reach the border count as outside the view (a
+        stereo camera's band without depth on its left), and a usable pixel without depth as a
+        change (an arm nearer than the camera measures, its shadow) (default true). Chosen on
+        the tune sides of the hard and hard-extra suites: a hovering stereo hand whose arm
+        crossed that band was absorbed and its landings lost (+4 contacts of 284, as many false
+        touches, 1 more id switch); docs/accuracy.md section 7, session 18.
     """
 
     enabled: bool = True
@@ -423,6 +430,7 @@ class AdaptConfig:
     bump_fraction: float = 0.4
     bump_s: float = 0.5
     keep_out_mm: float = 80.0
+    edge_outside: bool = True
 
     def validate(self) -> None:
         _range("adapt.absorb_s", self.absorb_s, 0.1, 60.0)

@@ -27,9 +27,11 @@ pytest.importorskip("depthtouch.sim")
 # 0.934, jitter 0.915 mm, p95 6.91 mm, the rest unchanged; session 15, the opening by the
 # fingertip's size in pixels: recall 0.946, 0 id switches, p95 7.04 mm, angle 4.07 deg, the rest
 # unchanged; session 16, the fingertip's area in pixels at range: 1.12 false touches per minute,
-# jitter 0.884 mm, the rest unchanged); "max" floors are upper bounds. Some
-# are short of issue 13's targets: they guard against regressions, see docs/accuracy.md.
-FLOORS_MIN: dict[str, float] = {"recall_working": 0.94, "recall_drift": 0.93}
+# jitter 0.884 mm, the rest unchanged; session 18, a stereo camera's band without depth counts
+# as outside the view: recall 0.970, 1.02 false touches per minute, jitter 0.846 mm, p95
+# 6.94 mm, the rest unchanged); "max" floors are upper bounds. Some are short of issue 13's
+# targets: they guard against regressions, see docs/accuracy.md.
+FLOORS_MIN: dict[str, float] = {"recall_working": 0.965, "recall_drift": 0.93}
 FLOORS_MAX: dict[str, float] = {
     "false_per_min": 1.5,
     "false_from_hover_25mm": 0,

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from depthtouch.config import PipelineConfig
+from depthtouch.config import PipelineConfig, config_from_dict
 from depthtouch.pipeline import Pipeline
 from depthtouch.types import Frame
 from synth import K_640, Finger, render_heights
@@ -73,16 +73,19 @@ def test_finger_held_still_ten_seconds_is_never_absorbed():
     assert last and np.hypot(last[0].x - f.x, last[0].y - f.y) * MM_PER_PX < 3.0
 
 
-@pytest.mark.parametrize("shadow", [True, False])
-def test_a_hand_whose_arm_enters_across_the_band_without_depth_is_never_absorbed(shadow):
+@pytest.mark.parametrize(("shadow", "edge_outside"), [(True, True), (False, True), (True, False)])
+def test_a_hand_whose_arm_enters_across_the_band_without_depth_is_never_absorbed(shadow,
+                                                                                  edge_outside):
     """A stereo camera's first 24 columns have no depth (unusable, learned so). A hand hovers
     15 mm up for 5 s, its arm reaching to the left across that band, a shadow without depth
     along the band's edge (8 columns) or none; then its finger lands: one touch, and the
-    surface under the hand stayed the table."""
+    surface under the hand stayed the table. With adapt.edge_outside off, the hand becomes
+    surface."""
     hover = render_heights((480, 640), [Finger(320, 240, 180, gap_mm=15.0)], MM_PER_PX)
     touch = render_heights((480, 640), [Finger(320, 240, 180)], MM_PER_PX)
     script = [lambda k: hover] * int(5 * FPS) + [lambda k: touch] * int(1 * FPS)
-    p = Pipeline(surface_frames=45)
+    cfg = config_from_dict({"adapt": {"edge_outside": edge_outside}})
+    p = Pipeline(cfg, surface_frames=45)
     events = []
     for f in frames(script):
         d = f.depth.copy()
@@ -90,7 +93,10 @@ def test_a_hand_whose_arm_enters_across_the_band_without_depth_is_never_absorbed
         if shadow and f.index >= 45:
             d[180:300, 24:32] = 0
         events += p.process(Frame(d, f.timestamp_s, f.index, f.depth_scale_m, f.K)).events
-    hand = p.surface.bounds.surface_mm[225:255, 340:400]  # under the hand
+    hand = p.surface.bounds.surface_mm[230:250, 250:300]  # under the finger and hand
+    if not edge_outside:
+        assert float(np.median(hand)) < 990.0
+        return
     assert abs(float(np.median(hand)) - 1000.0) < 3.0
     assert [e.state for e in events].count("down") == 1
 

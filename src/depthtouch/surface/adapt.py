@@ -73,8 +73,8 @@ class SurfaceAdapter:
         self._view_tl = np.ascontiguousarray(self.bounds.tl_mm[view])
         self._view_ok = np.ascontiguousarray(self.bounds.valid[view])
         # the unusable pixels that reach the image border: outside the view, as the border is
-        self._outside = (part_levels((~self._view_ok).view(np.uint8), 1.0, math.inf) == 2).view(
-            np.uint8)
+        self._outside = ((part_levels((~self._view_ok).view(np.uint8), 1.0, math.inf) == 2)
+                         & self.config.edge_outside).view(np.uint8)
         self._exclude = np.zeros((sh, sw), np.uint8)
         self._bump_since: float | None = None
         # the bump check's 1/8 views: of the surface (refreshed each stripe cycle) and of the
@@ -197,7 +197,7 @@ class SurfaceAdapter:
         surroundings of active touches (a 1/4 resolution view, once per stripe cycle)."""
         cfg, b = self.config, self.bounds
         changed = _changed_view(depth, b.surface_mm, self._view_tl, self._view_ok, self._view_y,
-                                self._view_x, float(b.to_mm))
+                                self._view_x, float(b.to_mm), cfg.edge_outside)
         # Changes connected to the image border are people: never absorbed. A stereo camera's
         # band without depth is outside the view too: a hand whose arm enters across it (and
         # whose shadow, without depth, separates it from the rest) is still a person's.
@@ -235,11 +235,12 @@ def _upsample(small: np.ndarray, up_y: np.ndarray, up_x: np.ndarray) -> np.ndarr
 
 @numba.njit(cache=True, nogil=True)
 def _changed_view(depth: np.ndarray, surface_mm: np.ndarray, view_tl: np.ndarray,
-                  view_ok: np.ndarray, view_y: np.ndarray, view_x: np.ndarray, to_mm: float
-                  ) -> np.ndarray:
-    """The 1/4 view of what differs from the surface by more than Tl, or has no depth where the
-    surface is usable (uint8 0/1): the pixels (view_y[j], view_x[i]) of the frame and the
-    surface; ``view_tl`` and ``view_ok`` are Tl and the usable mask at the same pixels."""
+                  view_ok: np.ndarray, view_y: np.ndarray, view_x: np.ndarray, to_mm: float,
+                  missing: bool) -> np.ndarray:
+    """The 1/4 view of what differs from the surface by more than Tl, or (``missing``) has no
+    depth where the surface is usable (uint8 0/1): the pixels (view_y[j], view_x[i]) of the
+    frame and the surface; ``view_tl`` and ``view_ok`` are Tl and the usable mask at the same
+    pixels."""
     sh, sw = view_y.shape[0], view_x.shape[0]
     out = np.zeros((sh, sw), np.uint8)
     t = np.float32(to_mm)
@@ -248,7 +249,7 @@ def _changed_view(depth: np.ndarray, surface_mm: np.ndarray, view_tl: np.ndarray
         for i in range(sw):
             x = view_x[i]
             d = np.float32(dr[x]) * t
-            if okr[i] and (d == 0 or abs(sr[x] - d) > tr[i]):
+            if okr[i] and ((d == 0 and missing) or (d > 0 and abs(sr[x] - d) > tr[i])):
                 out[j, i] = 1
     return out
 
@@ -367,7 +368,7 @@ def warm_up() -> None:
     _blocks(z16, 4, 1.0, b)
     _compare_blocks(f, f.copy(), f, f, 0.5)
     idx = np.arange(8)
-    excl = _upsample(_changed_view(z16, f, f, b, idx, idx, 1.0), idx, idx)
+    excl = _upsample(_changed_view(z16, f, f, b, idx, idx, 1.0, True), idx, idx)
     _stripe_update(z16, f, f + 1, f + 1, b, f.copy(), f.copy(), f + 1, excl, 0, 8, 1.0, 0.0, 0.5,
                    False, -1.0)
     _stripe_offset(z16, f, f + 1, f + 1, b, 0, 8, 1.0)
