@@ -181,6 +181,23 @@ def test_missing_episode_lowers_recall() -> None:
     assert math.isnan(m.lift_latency_p95_frames) is False
 
 
+@pytest.mark.parametrize(("one_track", "merged"), [(True, 1), (False, 0)])
+def test_two_taps_under_one_id_count_as_merged(one_track: bool, merged: int) -> None:
+    """Two taps at one spot: a touch kept down through the lift between them is one touch to an
+    app (a merge); a touch that goes up and comes back with a new id is two."""
+    contacts = {f: [contact(1, 300, 200)] for f in range(5, 12)}
+    contacts.update({f: [contact(2, 300, 200)] for f in range(20, 27)})
+    t = truth_from_dict(doc(35, contacts))
+    ev = (track(4, range(5, 27), (300, 200)) if one_track
+          else track(4, range(5, 12), (300, 200)) + track(5, range(20, 27), (300, 200)))
+    r = evaluate(t, ev)
+    assert r.ep_merged.tolist() == [False, bool(merged)]
+    m = summarize([r])
+    assert m.merged_contacts == merged
+    assert m.contact_recall == 1.0
+    assert m.lift_latency_median_frames == (7.5 if one_track else 0.0)  # (15 + 0) / 2
+
+
 def test_two_contacts_are_assigned_optimally() -> None:
     # greedy nearest-first would pair reported A with contact 2 and leave contact 1 unmatched
     contacts = {f: [contact(1, 300, 200), contact(2, 308, 200)] for f in range(5, 10)}

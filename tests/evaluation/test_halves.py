@@ -181,3 +181,21 @@ def test_cli_half_errors_are_one_line(argv: list[str], needle: str,
     assert main(argv) == 2
     err = capsys.readouterr().err
     assert needle in err and err.count("\n") == 1
+
+
+def test_second_check_set_moves_every_mount_but_the_far_stereo_ones() -> None:
+    """hard-fresh2: the 12 situations of hard on both halves, new seeds, and placements hard does
+    not have, except the far stereo mounts that the issue fixes."""
+    known = [c for n in ("hard", "hard-fresh", "hard-extra") for c in load_suite(n).cases]
+    fresh2 = load_suite("hard-fresh2").cases
+
+    def placement(c: SuiteCase) -> tuple[Any, ...]:
+        return (c.camera, c.distance_m, c.tilt_deg, c.surface)
+
+    assert len(fresh2) == 50
+    assert not {c.seed for c in fresh2} & {c.seed for c in known}
+    moved = {c.group for c in fresh2 if placement(c) not in {placement(k) for k in known}}
+    assert moved == {c.group for c in fresh2} - {"far-stereo"}
+    assert {c.group for c in fresh2} == {c.group for c in load_suite("hard").cases}
+    tune, held = select_half(fresh2, "tune"), select_half(fresh2, "held-out")
+    assert {c.group for c in tune} == {c.group for c in held}

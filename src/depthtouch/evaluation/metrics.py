@@ -130,7 +130,10 @@ class EvalResult:
     still_sq_sum_mm2, still_count: pooled squared deviations of still-finger runs (for jitter).
     timing_ms: per-frame processing time when the caller measured it.
     false_last: per false track, its last frame. change_frames: frames of surface changes
-    (:data:`SURFACE_CHANGES` events in the truth).
+    (:data:`SURFACE_CHANGES` events in the truth). ep_merged: per episode, it was first
+    reported under an id that an earlier episode, already ended, was reported under: the
+    sensor kept the touch down between them (a finger hovering low between two taps), so an app
+    saw one touch where there were two.
     """
 
     label: str
@@ -159,6 +162,7 @@ class EvalResult:
     timing_ms: np.ndarray
     false_last: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
     change_frames: tuple[int, ...] = ()
+    ep_merged: np.ndarray = field(default_factory=lambda: np.zeros(0, bool))
 
 
 def _episodes(frame: np.ndarray, ids: np.ndarray) -> np.ndarray:
@@ -271,6 +275,8 @@ def evaluate(
         "id", "first", "last", "found", "visible", "scored", "matched", "down", "lift", "switch", "path",
         "angle", "steps")}
     sq_sum, sq_count = 0.0, 0
+    # per episode: first matched frame and id, last matched frame, every matched id (merges)
+    seen_ids: list[tuple[int, int, int, set[int]]] = []
     for e in range(n_ep):
         rows = np.flatnonzero(ep == e)  # sorted by frame (rows are frame-sorted)
         fr = c_f[rows]
@@ -290,6 +296,8 @@ def evaluate(
         if ok.any():
             out["down"].append(float(fr[ok][0] - fr[0]))
             ids_seq = rid[ok]
+            seen_ids.append((int(fr[ok][0]), int(ids_seq[0]), int(fr[ok][-1]),
+                             set(ids_seq.tolist())))
             out["switch"].append(int(np.count_nonzero(ids_seq[1:] != ids_seq[:-1])))
             up = up_frame_of.get(int(ids_seq[-1]))
             out["lift"].append(float(up - (fr[-1] + 1)) if up is not None else math.nan)
@@ -327,6 +335,11 @@ def evaluate(
     def arr(key: str, dtype: type) -> np.ndarray:
         return np.asarray(out[key], dtype=dtype)
 
+    merged = np.zeros(n_ep, bool)
+    found_eps = np.flatnonzero(np.asarray(out["found"], bool))
+    for k, (first_f, first_id, _, _) in zip(found_eps, seen_ids, strict=True):
+        merged[k] = any(first_id in ids and last_f < first_f for _, _, last_f, ids in seen_ids)
+
     return EvalResult(
         label=label or str(truth.meta.get("scene", "")),
         n_frames=truth.n_frames,
@@ -341,7 +354,7 @@ def evaluate(
         errors_mm=err[np.isfinite(err)],
         false_frame=false_first, false_id=f_ids.astype(np.int64), false_frames=false_frames,
         false_hover_height_mm=false_h,
-        still_sq_sum_mm2=sq_sum, still_count=sq_count,
+        still_sq_sum_mm2=sq_sum, still_count=sq_count, ep_merged=merged,
         timing_ms=np.asarray(timing_ms if timing_ms is not None else [], dtype=np.float64),
         false_last=false_last,
         change_frames=_change_frames(truth),
@@ -378,7 +391,8 @@ class Metrics:
     false_hover_heights_mm: the hover height of each false track that came near a hover.
     error_*_mm: surface error of matches. id_switches: total.
     down_latency_* / lift_latency_*: frames (0 = on the first contact frame / ``up`` on the
-    first frame without contact).
+    first frame without contact). merged_contacts: contacts first reported under the id of an
+    earlier contact that had ended (EvalResult.ep_merged).
     angle_error_deg: mean angle between reported and true displacement vectors over drag steps
     of ``angle_step_frames`` frames (3 by default, as the issue tracker measures).
     jitter_rms_mm: RMS distance to the mean position of a still finger.
@@ -404,6 +418,7 @@ class Metrics:
     down_latency_p95_frames: float
     lift_latency_median_frames: float
     lift_latency_p95_frames: float
+    merged_contacts: int
     drags: int
     angle_error_deg: float
     jitter_rms_mm: float
@@ -489,6 +504,7 @@ def summarize(results: Sequence[EvalResult]) -> Metrics:
         down_latency_p95_frames=_q(cat("ep_down_latency"), 95),
         lift_latency_median_frames=_q(cat("ep_lift_latency"), 50),
         lift_latency_p95_frames=_q(cat("ep_lift_latency"), 95),
+        merged_contacts=int(cat("ep_merged").sum()),
         drags=int(use.sum()),
         angle_error_deg=angle,
         jitter_rms_mm=math.sqrt(sq / cnt) if cnt else math.nan,
