@@ -337,8 +337,8 @@ def evaluate(
 
     merged = np.zeros(n_ep, bool)
     found_eps = np.flatnonzero(np.asarray(out["found"], bool))
-    for k, (first_f, first_id, _, _) in zip(found_eps, seen_ids, strict=True):
-        merged[k] = any(first_id in ids and last_f < first_f for _, _, last_f, ids in seen_ids)
+    for e_k, (first_f, first_id, _, _) in zip(found_eps.tolist(), seen_ids, strict=True):
+        merged[e_k] = any(first_id in ids and last_f < first_f for _, _, last_f, ids in seen_ids)
 
     return EvalResult(
         label=label or str(truth.meta.get("scene", "")),
