@@ -88,6 +88,13 @@ class RegionConfig:
         pixels along the edge of a finger hovering over ToF) are dropped, and no region is cut
         (default 4, range [0, 100], at most open_tip_px; farther, ToF at 1.3-2 m, every region
         counts).
+    open_band_px: the opening is also used where a fingertip spans at least block_tip_px and
+        the band is deep: Tu minus the median Tl spans at least this many pixels on the surface
+        (a finger at 45 deg leaves a band that wide; default 6.0, twice the opening, range
+        [0, 100], 0 = off). ToF at 1.1-1.2 m qualifies (Tl 4 mm, 6-7 px): without the opening
+        the mixed pixels along a finger's sides join its tip region, which then looks attached
+        along the finger like a forearm's edge. Structured light at 1.7-1.8 m and stereo at
+        1.2 m do not (Tl 10-16 mm, 3-5 px): the opening would erase a slanted finger's band.
     min_hand_mm2: a raised part not connected to the image border counts as a hand when at least
         this large (default 6000 mm^2, a palm); see handmap.hand_map.
     median_px: a median filter of this size (1 = off, 3 or 5) on every depth frame, the surface
@@ -105,6 +112,7 @@ class RegionConfig:
     open_px: int = 3
     open_tip_px: float = 5.0
     block_tip_px: float = 4.0
+    open_band_px: float = 6.0
     median_px: int = 3
     min_hand_mm2: float = 6000.0
 
@@ -128,6 +136,7 @@ class RegionConfig:
             )
         _range("regions.open_tip_px", self.open_tip_px, 0.0, 100.0)
         _range("regions.block_tip_px", self.block_tip_px, 0.0, self.open_tip_px)
+        _range("regions.open_band_px", self.open_band_px, 0.0, 100.0)
         _range("regions.min_hand_mm2", self.min_hand_mm2, 0.0, 1e6)
         _range("regions.median_px", self.median_px, 1, 5)
         if self.median_px not in (1, 3, 5):

@@ -223,9 +223,25 @@ def test_depth_bounds_bit_for_bit_as_numpy():
 ])
 def test_the_opening_follows_the_fingertips_size_in_pixels(surface, tip_radius_mm, open_px,
                                                             need_block):
-    cfg = RegionConfig(open_tip_px=4.5, block_tip_px=3.5)
+    cfg = RegionConfig(open_tip_px=4.5, block_tip_px=3.5, open_band_px=0.0)
     b = band_bounds(surface, cfg, tip_radius_mm=tip_radius_mm)
     assert (b.open_px, b.need_block) == (open_px, need_block)
+
+
+@pytest.mark.parametrize("tl_floor_mm, open_band_px, open_px", [
+    (4.0, 6.0, 3),    # Tu - Tl = 21 mm: 12.6 px, a deep band: the opening
+    (16.0, 6.0, 1),   # 9 mm: 5.4 px, a slanted finger's band is too thin for it
+    (16.0, 5.0, 3),   # ... unless 5 px is deep enough
+    (4.0, 0.0, 1),    # the rule off: the fingertip's size alone
+])
+def test_between_the_sizes_a_deep_band_is_opened(surface, tl_floor_mm, open_band_px, open_px):
+    """A fingertip 4.2 px across (between block_tip_px and open_tip_px): the opening is used
+    when Tu - Tl spans at least open_band_px pixels (ToF at 1.1 m, whose mixed pixels along a
+    finger's sides would join its tip region), not when Tl is high (structured light at 1.8 m)."""
+    cfg = RegionConfig(open_tip_px=4.5, block_tip_px=3.5, open_band_px=open_band_px,
+                       tl_floor_mm=tl_floor_mm, noise_k=0.0)
+    b = band_bounds(surface, cfg, tip_radius_mm=3.5)
+    assert (b.open_px, b.need_block) == (open_px, open_px == 1)
 
 
 def test_without_the_opening_one_pixel_lines_go_and_thin_slivers_stay(surface):

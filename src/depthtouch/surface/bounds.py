@@ -148,7 +148,14 @@ def band_bounds(surface: SurfaceModel, config: RegionConfig, tip_radius_mm: floa
     # a slant: it is kept only where a fingertip spans open_tip_px; below, down to block_tip_px,
     # a region must hold a 2x2 block instead (one-pixel lines of mixed pixels go)
     tip_px = 2.0 * tip_radius_mm / mm_px
-    open_px = cfg.open_px if tip_px >= cfg.open_tip_px else 1
+    # ... or where the band is deep: Tu - Tl spans at least open_band_px pixels under a finger
+    # at 45 deg, so a slanted finger's band is wider than the opening (ToF at 1.1-1.2 m, where
+    # the mixed pixels along a finger's sides join its tip region and make it look attached
+    # along the finger; not structured light at 1.7-1.8 m or stereo at 1.2 m, whose Tl is high)
+    band_px = (cfg.tu_mm - float(np.median(tl[surface.valid]))) / mm_px if surface.valid.any() \
+        else 0.0
+    deep = cfg.open_band_px > 0 and tip_px >= cfg.block_tip_px and band_px >= cfg.open_band_px
+    open_px = cfg.open_px if tip_px >= cfg.open_tip_px or deep else 1
     need_block = open_px == 1 and cfg.open_px > 1 and tip_px >= cfg.block_tip_px
     return BandBounds(
         band_lo=bl, band_hi=bh, high_lo=hl, high_hi=hh,
