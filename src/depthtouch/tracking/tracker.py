@@ -304,14 +304,13 @@ class Tracker:
                 else:
                     out.append(TrackUpdate(t, "move", False))
                     keep.append(t)
-            elif t.missing < (cfg.pending_low_gap_frames if t.height_mm <= low_mm
+            elif t.missing < (cfg.pending_low_gap_frames if (low := t.height_mm <= low_mm)
                               else cfg.pending_gap_frames):
                 # a pending contact unseen this frame (a tip at the band's edge at range flickers
                 # in and out of it): kept, its evidence fading, for pending_gap_frames frames
                 # (pending_low_gap_frames when its tip was low, where pixels are small)
                 t.missing += 1
-                t.evidence *= (cfg.pending_low_decay if t.height_mm <= low_mm
-                               else cfg.pending_decay)
+                t.evidence *= cfg.pending_low_decay if low else cfg.pending_decay
                 keep.append(t)
             # otherwise an unmatched pending track is dropped (it never went down)
         for j in range(n_p):
