@@ -102,6 +102,9 @@ class TouchPoints:
         means unknown.
     offset_px: (N, 2) what to add to xy_px for the reported contact (a correction of the
         tip's position that tracking does not need: its matching uses xy_px); None means none.
+    core_height_mm: (N,) the height of the finger's core at the point: the 75th percentile of
+        the heights of the 3x3 pixels around it (NaN when none is known; the lift test in
+        tracking compares it with the same contact's earlier frames); None means unknown.
     """
 
     xy_px: np.ndarray
@@ -113,6 +116,7 @@ class TouchPoints:
     attach_height_mm: np.ndarray | None = None
     back_spread_mm: np.ndarray | None = None
     offset_px: np.ndarray | None = None
+    core_height_mm: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         n = self.xy_px.shape[0] if self.xy_px.ndim == 2 else -1
@@ -130,6 +134,8 @@ class TouchPoints:
             _check_shape("TouchPoints.back_spread_mm", self.back_spread_mm, (n,))
         if self.offset_px is not None:
             _check_shape("TouchPoints.offset_px", self.offset_px, (n, 2))
+        if self.core_height_mm is not None:
+            _check_shape("TouchPoints.core_height_mm", self.core_height_mm, (n,))
 
     @classmethod
     def empty(cls) -> TouchPoints:

@@ -2,10 +2,10 @@ import numpy as np
 import pytest
 
 from depthtouch.config import RegionConfig, TouchPointConfig
-from depthtouch.surface.bounds import band_bounds
+from depthtouch.surface.bounds import band_bounds, height_mm
 from depthtouch.surface.model import learn_surface
 from depthtouch.touch.handmap import hand_map
-from depthtouch.touch.points import find_touch_points
+from depthtouch.touch.points import core_heights_mm, find_touch_points
 from depthtouch.touch.regions import band_regions
 from reference_touchpoints import band_masks
 from synth import K_640, Finger, make_recording, render_heights
@@ -313,3 +313,39 @@ def _frame(bounds, fingers, seed=0, noise=1.5):
     d = np.clip(np.rint(1000 - hm + rng.normal(0, noise, hm.shape)), 0, None).astype(np.uint16)
     d[rng.random(d.shape) < 0.01] = 0
     return d, band_regions(d, bounds), bounds
+
+
+def test_core_height_is_the_75th_percentile_of_the_known_3x3_heights(bounds) -> None:
+    """core_heights_mm against np.nanpercentile over the height map's 3x3 windows: the image
+    edge clamps the window, unknown pixels (depth 0) are left out, and a window with no known
+    pixel gives NaN."""
+    rng = np.random.default_rng(4)
+    hm = render_heights((480, 640), [Finger(320, 240, 90, gap_mm=12)], MM_PER_PX)
+    d = np.clip(np.rint(1000 - hm + rng.normal(0, 1.5, hm.shape)), 0, None).astype(np.uint16)
+    d[rng.random(d.shape) < 0.2] = 0
+    d[100:103, 200:203] = 0  # a window with nothing known
+    xy = np.vstack([rng.uniform([-3, -3], [643, 483], (200, 2)), [[201.2, 101.4], [0, 479]]])
+    got = core_heights_mm(d, xy, bounds)
+    heights = height_mm(d, bounds).astype(np.float64)
+    for (x, y), g in zip(xy.tolist(), got.tolist(), strict=True):
+        cx, cy = min(max(round(x), 0), 639), min(max(round(y), 0), 479)
+        win = heights[[min(max(cy + k, 0), 479) for k in (-1, 0, 1)]][
+            :, [min(max(cx + k, 0), 639) for k in (-1, 0, 1)]]
+        if np.isnan(win).all():
+            assert np.isnan(g)
+        else:
+            assert g == pytest.approx(float(np.nanpercentile(win, 75)), abs=1e-3)
+    assert np.isnan(got[-2])
+
+
+def test_the_core_of_a_hovering_finger_lies_higher_than_its_tip(bounds) -> None:
+    """What the lift test reads: near the tip, a finger 12 mm up has its core well above a
+    touching one's (the points carry it as core_height_mm)."""
+    touch = detect(bounds, [Finger(320, 240, 90)])
+    assert touch.core_height_mm is not None and len(touch) == 1
+    core_touch = float(touch.core_height_mm[0])
+    rng = np.random.default_rng(0)
+    hm = render_heights((480, 640), [Finger(320, 240, 90, gap_mm=12)], MM_PER_PX)
+    d = np.clip(np.rint(1000 - hm + rng.normal(0, 1.5, hm.shape)), 0, None).astype(np.uint16)
+    core_hover = float(core_heights_mm(d, touch.xy_px, bounds)[0])
+    assert core_hover > core_touch + 10

@@ -36,6 +36,7 @@ from __future__ import annotations
 
 import math
 
+import numba
 import numpy as np
 
 from ..config import TouchPointConfig
@@ -79,7 +80,60 @@ def find_touch_points(
         if config.tip_tl_shift > 0:
             offset = tl_offset_px(xy, out.hand_xy_px, b, config.tip_tl_shift)
     return TouchPoints(xy, out.height_mm, out.area_px, out.hand_xy_px, out.hand_at_border,
-                       out.attach_px, out.attach_height_mm, out.back_spread_mm, offset)
+                       out.attach_px, out.attach_height_mm, out.back_spread_mm, offset,
+                       core_heights_mm(depth, xy, b))
+
+
+def core_heights_mm(depth: np.ndarray, xy_px: np.ndarray, bounds: BandBounds) -> np.ndarray:
+    """The height of the finger's core at each point: the 75th percentile (linear, as
+    ``np.nanpercentile``) of the known heights of the 3x3 pixels around its nearest pixel,
+    clamped to the image (pure, float64 (N,); NaN where none is known).
+
+    The measured tip height is the lowest part of the tip cap, and at ToF range the mixed pixels
+    of a hovering finger's outline lie as low as a touching tip's (docs/accuracy.md section 7,
+    session 19); the core's height still rises as the finger lifts, which the tracker's lift
+    test compares with the same contact's earlier frames.
+    """
+    xy = np.ascontiguousarray(np.asarray(xy_px, np.float64).reshape(-1, 2))
+    out = np.empty(xy.shape[0])
+    _core_kernel(depth, xy, bounds.surface_mm, bounds.factor, bounds.valid,
+                 float(bounds.to_mm), out)
+    return out
+
+
+@numba.njit(cache=True, nogil=True)
+def _core_kernel(depth: np.ndarray, xy: np.ndarray, surface_mm: np.ndarray, factor: np.ndarray,
+                 valid: np.ndarray, to_mm: float, out: np.ndarray) -> None:
+    """:func:`core_heights_mm` point by point (heights in float32 as :func:`height_mm` makes
+    them)."""
+    h, w = depth.shape[0], depth.shape[1]
+    vals = np.empty(9)
+    for i in range(xy.shape[0]):
+        cx = min(max(int(np.rint(xy[i, 0])), 0), w - 1)
+        cy = min(max(int(np.rint(xy[i, 1])), 0), h - 1)
+        k = 0
+        for dy in range(-1, 2):
+            y = min(max(cy + dy, 0), h - 1)
+            for dx in range(-1, 2):
+                x = min(max(cx + dx, 0), w - 1)
+                d = depth[y, x]
+                if d == 0 or not valid[y, x]:
+                    continue
+                v = float(np.float32((surface_mm[y, x] - np.float32(d) * np.float32(to_mm))
+                                     * factor[y, x]))
+                j = k  # insertion sort: 9 values at most
+                while j > 0 and vals[j - 1] > v:
+                    vals[j] = vals[j - 1]
+                    j -= 1
+                vals[j] = v
+                k += 1
+        if k == 0:
+            out[i] = np.nan
+            continue
+        pos = 0.75 * (k - 1)
+        lo = int(pos)
+        hi = min(lo + 1, k - 1)
+        out[i] = vals[lo] + (pos - lo) * (vals[hi] - vals[lo])
 
 
 def tl_offset_px(xy_px: np.ndarray, hand_xy_px: np.ndarray, bounds: BandBounds,

@@ -15,7 +15,10 @@ evidence fading (``pending_low_gap_frames`` when its tip was low, where pixels a
 contact missing for ``up_frames`` consecutive frames goes ``up`` with its last position (it is
 reported as ``move`` at that position during the grace frames). Height hysteresis: a tip must
 come below ``touch_on_mm`` to start a contact, and a contact lasts while its tip stays below
-``touch_off_mm``, so that a finger resting at the noise limit does not flicker.
+``touch_off_mm``, so that a finger resting at the noise limit does not flicker. A contact whose
+finger's core rises above its own earlier level (``lift_core_mm``, :mod:`.lift`) counts as
+missing though its tip still reads low (at ToF range a hovering finger's outline lies as low as
+a touching tip), and a pending one gains no evidence then.
 Ids are never reused within a run.
 """
 
@@ -30,15 +33,13 @@ from scipy.optimize import linear_sum_assignment
 
 from ..config import TouchPointConfig, TrackingConfig
 from ..types import TouchPoints, TouchState
+from .evidence import XY, evidence_weights, steep_tips
+from .lift import CoreHistory
 
 _BIG = 1e9
 # cost matrices up to this many entries are built with floats, larger ones with arrays (the
 # break-even on one core: about 10 tracks x 10 points when they are close together)
 _PY_COST_MAX = 100
-# a point this far behind a fingertip on its axis is still on that finger (a finger's length)
-_BEHIND_MAX_MM = 150.0
-
-XY = tuple[float, float]
 
 
 @dataclass(slots=True)
@@ -64,6 +65,7 @@ class Track:
     merged: int = 0  # consecutive frames hidden in a neighbour's region
     evidence: float = 0.0  # pending: frames of touch seen, each weighted by how tip-like it was
     offset_px: XY = (0.0, 0.0)
+    core: CoreHistory | None = None  # its finger's core heights (TrackingConfig.lift_core_mm)
 
     @property
     def report_px(self) -> XY:
@@ -100,51 +102,6 @@ def _assign(
     ri, ci = linear_sum_assignment(np.array(sub))
     return {rows[a]: cols[b] for a, b in zip(ri.tolist(), ci.tolist(), strict=True)
             if sub[a][b] < _BIG}
-
-
-def _behind(xy: list[XY], hand: list[list[float]], tips: list[int], scale: float,
-            lat_mm: float, min_mm: float) -> list[int]:
-    """The points that lie on the finger of one of the ``tips``, behind it: within ``lat_mm``
-    of its axis (the line from its hand to it) and ``min_mm`` to ``_BEHIND_MAX_MM`` back
-    toward its hand. (``xy``, ``hand``: image px; ``scale``: mm per px.)"""
-    axes = []
-    for q in tips:
-        (qx, qy), (hx, hy) = xy[q], hand[q]
-        nn = math.hypot(qx - hx, qy - hy)
-        if nn > 1e-6:
-            axes.append((q, qx, qy, (qx - hx) / nn, (qy - hy) / nn))
-    out = []
-    for j, (px, py) in enumerate(xy):
-        for q, qx, qy, ux, uy in axes:
-            if q == j:
-                continue
-            dx, dy = (px - qx) * scale, (py - qy) * scale
-            along = dx * ux + dy * uy
-            if -_BEHIND_MAX_MM < along < -min_mm and abs(dx * uy - dy * ux) < lat_mm:
-                out.append(j)
-                break
-    return out
-
-
-def _steep(points: TouchPoints, area_px: list[int], scale: float | None,
-           cfg: TrackingConfig) -> list[bool]:
-    """Which points look like the top of a steep finger's tip (TrackingConfig.steep_*): the
-    area, the height of the top, the hand right behind it at the height of a finger rising to
-    its knuckles. All False without a scale or the attachment's height, or with
-    steep_evidence 0."""
-    n = len(area_px)
-    ah, hand = points.attach_height_mm, points.hand_xy_px
-    if scale is None or cfg.steep_evidence <= 0 or ah is None or hand is None:
-        return [False] * n
-    a0, a1 = cfg.steep_area_min_mm2 / (scale * scale), cfg.steep_area_max_mm2 / (scale * scale)
-    near = cfg.steep_hand_mm / scale
-    out = []
-    for (x, y), (hx, hy), a, h, st in zip(points.xy_px.tolist(), hand.tolist(), area_px,
-                                          points.height_mm.tolist(), ah.tolist(), strict=True):
-        out.append(a0 <= a <= a1 and cfg.steep_top_min_mm <= h <= cfg.steep_top_max_mm
-                   and cfg.steep_step_min_mm < st <= cfg.steep_step_max_mm
-                   and math.hypot(x - hx, y - hy) < near)
-    return out
 
 
 class TrackUpdate(NamedTuple):
@@ -209,13 +166,16 @@ class Tracker:
         area = points.area_px.tolist()
         offset: list[XY] = ([(0.0, 0.0)] * n_p if points.offset_px is None
                             else list(map(tuple, points.offset_px.tolist())))
+        lift_mm = self.config.lift_core_mm
+        core = ([math.nan] * n_p if points.core_height_mm is None or lift_mm <= 0
+                else points.core_height_mm.tolist())
         hb = points.hand_at_border
         border: list[bool] = ([True] * n_p if hb is None else hb.tolist() if hb.dtype.kind == "b"
                               else [bool(b) for b in hb.tolist()])
         # (an unknown height, NaN, compares False: never a touch)
         off, on = self.touch.touch_off_mm, self.touch.touch_on_mm
         ok_cont = [v <= off for v in h]
-        steep = _steep(points, area, self.scale_mm_per_px, self.config)
+        steep = steep_tips(points, area, self.scale_mm_per_px, self.config)
         ok_new = [v <= on or s for v, s in zip(h, steep, strict=True)]
         matched_t: dict[int, int] = {}
         groups: dict[int, list[int]] = {}
@@ -247,7 +207,8 @@ class Tracker:
             for i in members:
                 shift[i] = (k, step)
         down_frames = self.config.down_frames
-        weight = self._evidence_weights(points, xy, area, ok_new, steep)
+        weight = evidence_weights(points, xy, area, ok_new, steep, self.scale_mm_per_px,
+                                  self.config)
         cfg, low_mm = self.config, self._pending_low_mm()
         for i, t in enumerate(tracks):
             j = matched_t.get(i)
@@ -271,6 +232,25 @@ class Tracker:
                 keep.append(t)
                 continue
             if j is not None:
+                w_j = weight[j]
+                rise = t.core.update(core[j]) if t.core is not None else math.nan
+                if rise > lift_mm:  # (NaN compares False)
+                    if t.active:
+                        # its core rose above the contact's own level: lifted, though the tip
+                        # still reads low; a missing frame, but the point stays taken
+                        t.missing += 1
+                        if t.missing < cfg.up_frames:
+                            out.append(TrackUpdate(t, "move", False))
+                            keep.append(t)
+                            continue
+                        out.append(TrackUpdate(t, "up", False))
+                        # the hovering finger goes on as a pending contact that keeps this
+                        # history: it goes down again once its core is back at the level
+                        t = Track(xy[j], pos[j], float(h[j]), int(area[j]),
+                                  hand_at_border=border[j], offset_px=offset[j], core=t.core)
+                        keep.append(t)
+                        continue
+                    w_j = 0.0  # a pending contact whose core rose: not a touch this frame
                 m = 1 + t.missing
                 (vx, vy), (ox, oy), (px, py) = t.vel, t.pos, pos[j]
                 # smoothed velocity, from rest: a noisy touch point (or, just after touch-down, a
@@ -283,7 +263,7 @@ class Tracker:
                 t.seen += 1
                 t.missing = 0
                 t.merged = 0
-                t.evidence += weight[j]
+                t.evidence += w_j
                 if t.active:
                     out.append(TrackUpdate(t, "move", True))
                 elif t.evidence >= down_frames - 1e-9:
@@ -318,6 +298,9 @@ class Tracker:
                 continue
             t = Track(xy[j], pos[j], float(h[j]), int(area[j]), hand_at_border=border[j],
                       evidence=weight[j], offset_px=offset[j])
+            if lift_mm > 0:
+                t.core = CoreHistory()
+                t.core.update(core[j])
             if t.evidence >= down_frames - 1e-9:
                 self._activate(t)
                 out.append(TrackUpdate(t, "down", True))
@@ -333,71 +316,6 @@ class Tracker:
                 or c.tip_area_min_mm2 / (scale * scale) < c.tip_area_min_px):
             return -math.inf
         return c.pending_low_mm
-
-    def _evidence_weights(self, points: TouchPoints, xy: list[XY], area_px: list[int],
-                          ok_new: list[bool], steep: list[bool]) -> list[float]:
-        """How much one frame of each point counts toward ``down`` (see TrackingConfig).
-
-        A region of a fingertip's size (at least ``tip_area_min_mm2`` and ``tip_area_min_px``,
-        at most ``tip_area_max_mm2`` or ``tip_area_max_px``) counts a whole frame; a smaller
-        one (a speck of noise at a finger's edge, a tip only grazing the band) or a larger one
-        (a hovering finger or a forearm's edge lying in the band) counts ``weak_evidence``, so it
-        must persist for more frames before it is believed. A region attached to its hand along
-        more than ``attach_max_mm`` (the broad edge of a forearm or a palm lying in the band, not
-        a fingertip at the end of a finger) counts nothing (``attach_low_evidence`` if it rests
-        within ``attach_low_mm`` of the surface: a finger of a hand held low), and so does one
-        whose attached hand pixels lie higher than ``step_max_mm`` (a finger rises from the band
-        gradually; mixed pixels at the side of a raised hand jump), and so does one with level
-        heights behind it (``flat_max_mm``: the top of a held book, the flank of a forearm; a
-        finger rises and is narrow), and so does a point on the axis of another point low
-        enough to go down, behind it (``behind_lat_mm``: a finger has one tip; what lies behind
-        it on its axis is the finger's flank). The top of a steep finger (``steep``) counts ``steep_evidence``
-        instead of the size test's weight and is exempt from the step and flat tests. Without a
-        scale (no intrinsics) every frame counts whole.
-        """
-        scale = self.scale_mm_per_px
-        n = len(area_px)
-        if scale is None:
-            return [1.0] * n
-        attach_px, attach_height_mm = points.attach_px, points.attach_height_mm
-        back_spread_mm = points.back_spread_mm
-        weak, steep_w = self.config.weak_evidence, self.config.steep_evidence
-        if weak >= 1.0:
-            w = [1.0] * n
-        else:
-            px_mm2 = scale * scale
-            lo = max(self.config.tip_area_min_mm2 / px_mm2, self.config.tip_area_min_px)
-            hi = max(self.config.tip_area_max_mm2 / px_mm2, self.config.tip_area_max_px)
-            w = [1.0 if lo <= a <= hi else weak for a in area_px]
-        if any(steep):
-            w = [steep_w if s else v for v, s in zip(w, steep, strict=True)]
-        # the attachment counts the hand pixels within 2 px of the region: an attachment w mm
-        # long gives up to 2 (w / scale + 4) of them (the ring is 2 px deep and reaches 2 px
-        # past either end)
-        long_px = 2.0 * (self.config.attach_max_mm / scale + 4.0)
-        if attach_px is not None and self.config.attach_max_mm > 0:
-            # ... unless its touching pixel rests lower than such an edge lies (a finger whose
-            # hand is held low): then it counts attach_low_evidence at most
-            low, low_w = self.config.attach_low_mm, self.config.attach_low_evidence
-            w = [(min(v, low_w) if h <= low else 0.0) if a > long_px else v
-                 for v, a, h in zip(w, attach_px.tolist(), points.height_mm.tolist(),
-                                    strict=True)]
-        step = self.config.step_max_mm
-        if attach_height_mm is not None and step > 0:
-            # (an unknown height, NaN, compares False: no evidence taken away)
-            w = [0.0 if a > step and not s else v
-                 for v, a, s in zip(w, attach_height_mm.tolist(), steep, strict=True)]
-        flat = self.config.flat_max_mm
-        if back_spread_mm is not None and flat > 0:
-            w = [0.0 if a < flat and not s else v
-                 for v, a, s in zip(w, back_spread_mm.tolist(), steep, strict=True)]
-        lat = self.config.behind_lat_mm
-        if lat > 0 and n > 1 and points.hand_xy_px is not None:
-            tips = [j for j in range(n) if ok_new[j]]
-            for j in _behind(xy, points.hand_xy_px.tolist(), tips, scale,
-                             lat + self.config.behind_lat_px * scale, self.config.behind_min_mm):
-                w[j] = 0.0
-        return w
 
     def _cost(self, pos: list[XY], ok_cont: list[bool], ok_new: list[bool]) -> list[list[float]]:
         """Gated distance of each track to each point (_BIG where it may not take the point).

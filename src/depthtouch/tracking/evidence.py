@@ -1,0 +1,129 @@
+"""Evidence for a new contact: how much one frame of each touch point counts toward ``down``
+(see :class:`depthtouch.config.TrackingConfig` and :mod:`depthtouch.tracking.tracker`).
+
+Pure functions of one frame's points: the size of the region, its attachment to the hand, the
+height of that attachment, the level heights behind it, whether it lies behind another tip on
+that tip's finger, and whether it looks like the top of a finger standing almost upright.
+"""
+
+from __future__ import annotations
+
+import math
+
+from ..config import TrackingConfig
+from ..types import TouchPoints
+
+XY = tuple[float, float]
+# a point this far behind a fingertip on its axis is still on that finger (a finger's length)
+_BEHIND_MAX_MM = 150.0
+
+
+def behind(xy: list[XY], hand: list[list[float]], tips: list[int], scale: float,
+            lat_mm: float, min_mm: float) -> list[int]:
+    """The points that lie on the finger of one of the ``tips``, behind it: within ``lat_mm``
+    of its axis (the line from its hand to it) and ``min_mm`` to ``_BEHIND_MAX_MM`` back
+    toward its hand. (``xy``, ``hand``: image px; ``scale``: mm per px.)"""
+    axes = []
+    for q in tips:
+        (qx, qy), (hx, hy) = xy[q], hand[q]
+        nn = math.hypot(qx - hx, qy - hy)
+        if nn > 1e-6:
+            axes.append((q, qx, qy, (qx - hx) / nn, (qy - hy) / nn))
+    out = []
+    for j, (px, py) in enumerate(xy):
+        for q, qx, qy, ux, uy in axes:
+            if q == j:
+                continue
+            dx, dy = (px - qx) * scale, (py - qy) * scale
+            along = dx * ux + dy * uy
+            if -_BEHIND_MAX_MM < along < -min_mm and abs(dx * uy - dy * ux) < lat_mm:
+                out.append(j)
+                break
+    return out
+
+
+def steep_tips(points: TouchPoints, area_px: list[int], scale: float | None,
+           cfg: TrackingConfig) -> list[bool]:
+    """Which points look like the top of a steep finger's tip (TrackingConfig.steep_*): the
+    area, the height of the top, the hand right behind it at the height of a finger rising to
+    its knuckles. All False without a scale or the attachment's height, or with
+    steep_evidence 0."""
+    n = len(area_px)
+    ah, hand = points.attach_height_mm, points.hand_xy_px
+    if scale is None or cfg.steep_evidence <= 0 or ah is None or hand is None:
+        return [False] * n
+    a0, a1 = cfg.steep_area_min_mm2 / (scale * scale), cfg.steep_area_max_mm2 / (scale * scale)
+    near = cfg.steep_hand_mm / scale
+    out = []
+    for (x, y), (hx, hy), a, h, st in zip(points.xy_px.tolist(), hand.tolist(), area_px,
+                                          points.height_mm.tolist(), ah.tolist(), strict=True):
+        out.append(a0 <= a <= a1 and cfg.steep_top_min_mm <= h <= cfg.steep_top_max_mm
+                   and cfg.steep_step_min_mm < st <= cfg.steep_step_max_mm
+                   and math.hypot(x - hx, y - hy) < near)
+    return out
+
+
+def evidence_weights(points: TouchPoints, xy: list[XY], area_px: list[int], ok_new: list[bool],
+                     steep: list[bool], scale: float | None,
+                     config: TrackingConfig) -> list[float]:
+    """How much one frame of each point counts toward ``down`` (see TrackingConfig).
+
+    A region of a fingertip's size (at least ``tip_area_min_mm2`` and ``tip_area_min_px``,
+    at most ``tip_area_max_mm2`` or ``tip_area_max_px``) counts a whole frame; a smaller
+    one (a speck of noise at a finger's edge, a tip only grazing the band) or a larger one
+    (a hovering finger or a forearm's edge lying in the band) counts ``weak_evidence``, so it
+    must persist for more frames before it is believed. A region attached to its hand along
+    more than ``attach_max_mm`` (the broad edge of a forearm or a palm lying in the band, not
+    a fingertip at the end of a finger) counts nothing (``attach_low_evidence`` if it rests
+    within ``attach_low_mm`` of the surface: a finger of a hand held low), and so does one
+    whose attached hand pixels lie higher than ``step_max_mm`` (a finger rises from the band
+    gradually; mixed pixels at the side of a raised hand jump), and so does one with level
+    heights behind it (``flat_max_mm``: the top of a held book, the flank of a forearm; a
+    finger rises and is narrow), and so does a point on the axis of another point low
+    enough to go down, behind it (``behind_lat_mm``: a finger has one tip; what lies behind
+    it on its axis is the finger's flank). The top of a steep finger (``steep``) counts
+    ``steep_evidence`` instead of the size test's weight and is exempt from the step and flat
+    tests. Without a scale (no intrinsics: ``scale`` None) every frame counts whole.
+    """
+    n = len(area_px)
+    if scale is None:
+        return [1.0] * n
+    attach_px, attach_height_mm = points.attach_px, points.attach_height_mm
+    back_spread_mm = points.back_spread_mm
+    weak, steep_w = config.weak_evidence, config.steep_evidence
+    if weak >= 1.0:
+        w = [1.0] * n
+    else:
+        px_mm2 = scale * scale
+        lo = max(config.tip_area_min_mm2 / px_mm2, config.tip_area_min_px)
+        hi = max(config.tip_area_max_mm2 / px_mm2, config.tip_area_max_px)
+        w = [1.0 if lo <= a <= hi else weak for a in area_px]
+    if any(steep):
+        w = [steep_w if s else v for v, s in zip(w, steep, strict=True)]
+    # the attachment counts the hand pixels within 2 px of the region: an attachment w mm
+    # long gives up to 2 (w / scale + 4) of them (the ring is 2 px deep and reaches 2 px
+    # past either end)
+    long_px = 2.0 * (config.attach_max_mm / scale + 4.0)
+    if attach_px is not None and config.attach_max_mm > 0:
+        # ... unless its touching pixel rests lower than such an edge lies (a finger whose
+        # hand is held low): then it counts attach_low_evidence at most
+        low, low_w = config.attach_low_mm, config.attach_low_evidence
+        w = [(min(v, low_w) if h <= low else 0.0) if a > long_px else v
+             for v, a, h in zip(w, attach_px.tolist(), points.height_mm.tolist(),
+                                strict=True)]
+    step = config.step_max_mm
+    if attach_height_mm is not None and step > 0:
+        # (an unknown height, NaN, compares False: no evidence taken away)
+        w = [0.0 if a > step and not s else v
+             for v, a, s in zip(w, attach_height_mm.tolist(), steep, strict=True)]
+    flat = config.flat_max_mm
+    if back_spread_mm is not None and flat > 0:
+        w = [0.0 if a < flat and not s else v
+             for v, a, s in zip(w, back_spread_mm.tolist(), steep, strict=True)]
+    lat = config.behind_lat_mm
+    if lat > 0 and n > 1 and points.hand_xy_px is not None:
+        tips = [j for j in range(n) if ok_new[j]]
+        for j in behind(xy, points.hand_xy_px.tolist(), tips, scale,
+                         lat + config.behind_lat_px * scale, config.behind_min_mm):
+            w[j] = 0.0
+    return w

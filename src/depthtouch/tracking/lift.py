@@ -1,0 +1,79 @@
+"""Lift test: a contact whose finger's core rises above the same contact's own earlier frames
+has lifted, even where its measured tip height has not.
+
+At ToF range the measured tip height of a finger hovering 15 mm up is as low as a touching
+tip's (the lowest pixels of the tip cap are the mixed pixels of its outline, between finger and
+surface), so the height hysteresis alone keeps a touch down 15-25 frames after the finger
+lifts, and two taps with a low hover between them become one touch (docs/accuracy.md section 7,
+session 19). The height of the finger's core near the tip (``TouchPoints.core_height_mm``)
+overlaps between contact and hover across contacts and placements, but within one contact it
+rises when the finger lifts. So each track keeps the history of its core height: the median of
+its last ``RECENT`` values (its level), against ``BASE_PCT`` percentile of those levels over its
+last ``HISTORY`` frames (the track's own level), from its ``MINHIST``-th known value; the
+tracker reads a rise of more than ``TrackingConfig.lift_core_mm`` as a lift.
+
+Chosen on the tune sides of the hard, hard-extra and hard-fresh2 suites (docs/accuracy.md
+section 7, session 20). With the 20th percentile as the track's level, or without the wait for
+10 values, the test also ended touches that had gone down while the finger hovered (at ToF 2 m
+a finger 60 mm up can be down) just before the finger landed, and so turned one touch into a
+false tap and a touch.
+"""
+
+from __future__ import annotations
+
+import math
+from bisect import bisect_left, insort
+from collections import deque
+from dataclasses import dataclass, field
+
+# the median of this many last core heights (one frame's is noisy)
+RECENT = 3
+# the track's own level: this percentile of those medians
+BASE_PCT = 50.0
+# ... over this many of its last frames (a touch held for minutes keeps a bounded history)
+HISTORY = 300
+# no rise is read before this many known values (the level of a new track is not yet known)
+MINHIST = 10
+
+
+@dataclass(slots=True)
+class CoreHistory:
+    """The core heights of one track, frame after frame (``update``; ``reset`` to forget)."""
+
+    recent: deque[float] = field(default_factory=lambda: deque(maxlen=RECENT))
+    order: deque[float] = field(default_factory=lambda: deque(maxlen=HISTORY))
+    ranked: list[float] = field(default_factory=list)  # ``order`` sorted
+
+    def update(self, core_mm: float) -> float:
+        """Take one frame's core height (mm; NaN: unknown, ignored) and return how far the
+        recent level lies above the track's base (mm; NaN when this frame's is unknown and
+        before MINHIST known values)."""
+        if not math.isfinite(core_mm):
+            return math.nan
+        self.recent.append(core_mm)
+        r = self.recent
+        # the median (numpy's: the mean of the middle two of an even count)
+        level = sorted(r)[len(r) // 2] if len(r) != 2 else 0.5 * (r[0] + r[1])
+        if len(self.order) == HISTORY:
+            del self.ranked[bisect_left(self.ranked, self.order[0])]
+        self.order.append(level)
+        insort(self.ranked, level)
+        if len(self.order) < MINHIST:
+            return math.nan
+        return level - self.base()
+
+    def base(self) -> float:
+        """The track's own level (mm): BASE_PCT percentile of its recent levels (linear, as
+        ``np.percentile``); NaN when none is known."""
+        r = self.ranked
+        if not r:
+            return math.nan
+        pos = BASE_PCT / 100.0 * (len(r) - 1)
+        lo = int(pos)
+        hi = min(lo + 1, len(r) - 1)
+        return r[lo] + (pos - lo) * (r[hi] - r[lo])
+
+    def reset(self) -> None:
+        self.recent.clear()
+        self.order.clear()
+        self.ranked.clear()

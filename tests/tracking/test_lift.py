@@ -1,0 +1,112 @@
+import math
+
+import numpy as np
+import pytest
+
+from depthtouch.config import TouchPointConfig, TrackingConfig
+from depthtouch.tracking import lift
+from depthtouch.tracking.lift import CoreHistory
+from depthtouch.tracking.tracker import Tracker
+from depthtouch.types import TouchPoints
+
+
+def _oracle(values: list[float]) -> list[float]:
+    """The rise, frame by frame, from arrays: the median of the last RECENT known values, less
+    BASE_PCT percentile of those medians over the last HISTORY frames; NaN for an unknown
+    value and before MINHIST known ones."""
+    known: list[float] = []
+    levels: list[float] = []
+    out = []
+    for v in values:
+        if not math.isfinite(v):
+            out.append(math.nan)
+            continue
+        known.append(v)
+        level = float(np.median(known[-lift.RECENT:]))
+        levels.append(level)
+        if len(levels) < lift.MINHIST:
+            out.append(math.nan)
+        else:
+            out.append(level - float(np.percentile(levels[-lift.HISTORY:], lift.BASE_PCT)))
+    return out
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_the_rise_is_the_recent_level_above_the_tracks_own(seed: int) -> None:
+    rng = np.random.default_rng(seed)
+    n = lift.HISTORY + 150  # past the bounded history
+    values = rng.normal(10.0, 4.0, n)
+    values[rng.random(n) < 0.1] = np.nan
+    values[200:230] += 25.0  # a lift
+    h = CoreHistory()
+    got = [h.update(float(v)) for v in values]
+    np.testing.assert_allclose(got, _oracle(values.tolist()), atol=1e-9)
+    h.reset()
+    assert math.isnan(h.base())
+    assert math.isnan(h.update(5.0))  # a new history: not yet MINHIST values
+
+
+def _tip(h: float, core: float, x: float = 100.0) -> TouchPoints:
+    return TouchPoints(np.array([[x, 100.0]]), np.array([h]), np.array([300]),
+                       np.full((1, 2), np.nan), core_height_mm=np.array([core]))
+
+
+def _states(tracker: Tracker, frames: list[TouchPoints]) -> list[list[tuple[int, str]]]:
+    return [[(u.track.id, u.state) for u in tracker.update(f)] for f in frames]
+
+
+def _taps(core_between: float, frames_between: int) -> list[TouchPoints]:
+    """A tap, the finger lifted while its tip still reads 3 mm up (its core does not), a
+    second tap at the same place."""
+    contact = [_tip(3.0, 8.0 + (i % 3)) for i in range(20)]
+    lifted = [_tip(3.0, core_between)] * frames_between
+    return contact + lifted + contact
+
+
+def _ids_down(frames: list[list[tuple[int, str]]]) -> list[int]:
+    return [i for f in frames for i, s in f if s == "down"]
+
+
+def test_two_taps_whose_core_shows_the_lift_between_them_are_two_touches() -> None:
+    tr = Tracker(TrackingConfig(lift_core_mm=15.0), TouchPointConfig(), scale_mm_per_px=1.0)
+    frames = _states(tr, _taps(core_between=35.0, frames_between=8))
+    assert _ids_down(frames) == [1, 2]
+    ups = [k for k, f in enumerate(frames) if any(s == "up" for _, s in f)]
+    # the core's median of 3 follows from the second lifted frame; up on the third such frame
+    assert ups == [20 + 3]
+    # the lifted finger goes down again only once its core is back: not during the lift
+    assert all(s != "down" for f in frames[20:28] for _, s in f)
+
+
+def test_without_the_lift_test_two_taps_with_a_low_tip_between_are_one_touch() -> None:
+    tr = Tracker(TrackingConfig(lift_core_mm=0.0), TouchPointConfig(), scale_mm_per_px=1.0)
+    assert _ids_down(_states(tr, _taps(core_between=35.0, frames_between=8))) == [1]
+
+
+@pytest.mark.parametrize(("core_between", "frames_between"), [
+    (20.0, 8),   # a rise of 11 mm: within lift_core_mm
+    (35.0, 1),   # a rise for one frame: the median of 3 does not follow it
+])
+def test_a_small_or_brief_rise_of_the_core_keeps_the_touch(core_between: float,
+                                                           frames_between: int) -> None:
+    tr = Tracker(TrackingConfig(lift_core_mm=15.0), TouchPointConfig(), scale_mm_per_px=1.0)
+    frames = _states(tr, _taps(core_between, frames_between))
+    assert _ids_down(frames) == [1]
+    assert not any(s == "up" for f in frames for _, s in f)
+
+
+def test_a_pending_contact_whose_core_rose_gains_no_evidence() -> None:
+    """A finger hovering with its tip in the band: a pending contact that has seen its core low
+    (the descent) does not go down while the core stays above that level."""
+    cfg = TrackingConfig(lift_core_mm=15.0, down_frames=13)
+    tr = Tracker(cfg, TouchPointConfig(), scale_mm_per_px=1.0)
+    frames = [_tip(3.0, 8.0)] * 11 + [_tip(3.0, 40.0)] * 10
+    assert _ids_down(_states(tr, frames)) == []
+    tr = Tracker(cfg, TouchPointConfig(), scale_mm_per_px=1.0)
+    assert _ids_down(_states(tr, [_tip(3.0, 8.0)] * 21)) == [1]  # the same, core low
+
+
+def test_lift_core_is_validated() -> None:
+    from depthtouch.errors import ConfigError
+    with pytest.raises(ConfigError, match="lift_core_mm"):
+        TrackingConfig(lift_core_mm=-1.0).validate()
