@@ -501,7 +501,7 @@ LINES = st.lists(
     .map(json.dumps)
     | JSON.map(json.dumps)
     | st.text(alphabet=st.characters(blacklist_characters="\n\r\x0b\x0c\x1c\x1d\x1e\x85\u2028"
-                                     "\u2029"), max_size=20),
+                                     "\u2029", codec="utf-8"), max_size=20),  # a file's text
     max_size=5,
 )
 
