@@ -48,6 +48,8 @@ T = TypeVar("T")
 SETTINGS = settings(max_examples=int(os.environ.get("DEPTHTOUCH_FUZZ_EXAMPLES", "60")),
                     deadline=None,
                     suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
+# text a UTF-8 file can hold (no lone surrogates)
+UTF8 = st.characters(codec="utf-8")
 K_OK = np.array([[600.0, 0, 15.5], [0, 600.0, 11.5], [0, 0, 1]])
 
 
@@ -227,7 +229,7 @@ META = st.one_of(
                   "K": st.just(K_OK.tolist()) | JSON},
     ).map(json.dumps),
     JSON.map(json.dumps),
-    st.text(max_size=20),
+    st.text(UTF8, max_size=20),
 )
 TIMESTAMPS_TXT = st.none() | st.text(alphabet="0123456789.e-+ \nnaif", max_size=30) | st.lists(
     st.floats(allow_nan=True), max_size=4).map(lambda v: "".join(f"{x!r}\n" for x in v))
@@ -392,22 +394,22 @@ def _toml(v: Any) -> str:
 SECTIONS = {name: [f for f in getattr(PipelineConfig(), name).__dataclass_fields__]
             for name in PipelineConfig.__dataclass_fields__}
 TOML_SCALARS = (st.booleans() | st.integers(-(2**63), 2**63 - 1) | st.integers()
-                | st.floats(allow_nan=False) | st.just(float("nan")) | st.text(max_size=6))
+                | st.floats(allow_nan=False) | st.just(float("nan")) | st.text(UTF8, max_size=6))
 TOML_VALUES = st.recursive(TOML_SCALARS, lambda kids: st.lists(kids, max_size=3)
-                           | st.dictionaries(st.text(max_size=5), kids, max_size=3), max_leaves=8)
+                           | st.dictionaries(st.text(UTF8, max_size=5), kids, max_size=3), max_leaves=8)
 
 
 @st.composite
 def config_tables(draw: st.DrawFn) -> dict[str, Any]:
     """Tables of known and unknown sections and keys with valid-looking and random values."""
     doc: dict[str, Any] = {}
-    names = draw(st.lists(st.sampled_from(sorted(SECTIONS)) | st.text(max_size=6), max_size=3))
+    names = draw(st.lists(st.sampled_from(sorted(SECTIONS)) | st.text(UTF8, max_size=6), max_size=3))
     for section in names:
         if section not in SECTIONS:
             doc[section] = draw(TOML_VALUES)
             continue
         table: dict[str, Any] = {}
-        for key in draw(st.lists(st.sampled_from(SECTIONS[section]) | st.text(max_size=5),
+        for key in draw(st.lists(st.sampled_from(SECTIONS[section]) | st.text(UTF8, max_size=5),
                                  max_size=3)):
             default = getattr(getattr(PipelineConfig(), section), key, None)
             near = (st.floats(0.0, 2.0 * default) if isinstance(default, float)
@@ -582,7 +584,7 @@ def test_calibration_reader_on_random_and_damaged_files(base: Any, data: Any) ->
             del doc[data.draw(st.sampled_from(sorted(doc)))]
         elif choice == "whole":
             doc = data.draw(JSON)
-        p.write_text(json.dumps(doc) if choice != "text" else data.draw(st.text(max_size=30)))
+        p.write_text(json.dumps(doc) if choice != "text" else data.draw(st.text(UTF8, max_size=30)))
         got = read_or_fail_cleanly(lambda: cal.load_calibration(p))
     if got is not None:
         assert got.H.shape == (3, 3) and np.all(np.isfinite(got.H))
