@@ -36,7 +36,6 @@ from __future__ import annotations
 
 import math
 
-import numba
 import numpy as np
 
 from ..config import TouchPointConfig
@@ -46,6 +45,7 @@ from .handmap import hand_map
 from .parallax import foot_px
 from .regions import Regions
 from .tipkernel import KernelRegions, KernelSurface, TipParams, frame_points
+from .tipmaps import core_heights
 
 
 def find_touch_points(
@@ -96,44 +96,9 @@ def core_heights_mm(depth: np.ndarray, xy_px: np.ndarray, bounds: BandBounds) ->
     """
     xy = np.ascontiguousarray(np.asarray(xy_px, np.float64).reshape(-1, 2))
     out = np.empty(xy.shape[0])
-    _core_kernel(depth, xy, bounds.surface_mm, bounds.factor, bounds.valid,
-                 float(bounds.to_mm), out)
+    core_heights(depth, bounds.surface_mm, bounds.factor, bounds.valid, float(bounds.to_mm),
+                 xy, out)
     return out
-
-
-@numba.njit(cache=True, nogil=True)
-def _core_kernel(depth: np.ndarray, xy: np.ndarray, surface_mm: np.ndarray, factor: np.ndarray,
-                 valid: np.ndarray, to_mm: float, out: np.ndarray) -> None:
-    """:func:`core_heights_mm` point by point (heights in float32 as :func:`height_mm` makes
-    them)."""
-    h, w = depth.shape[0], depth.shape[1]
-    vals = np.empty(9)
-    for i in range(xy.shape[0]):
-        cx = min(max(int(np.rint(xy[i, 0])), 0), w - 1)
-        cy = min(max(int(np.rint(xy[i, 1])), 0), h - 1)
-        k = 0
-        for dy in range(-1, 2):
-            y = min(max(cy + dy, 0), h - 1)
-            for dx in range(-1, 2):
-                x = min(max(cx + dx, 0), w - 1)
-                d = depth[y, x]
-                if d == 0 or not valid[y, x]:
-                    continue
-                v = float(np.float32((surface_mm[y, x] - np.float32(d) * np.float32(to_mm))
-                                     * factor[y, x]))
-                j = k  # insertion sort: 9 values at most
-                while j > 0 and vals[j - 1] > v:
-                    vals[j] = vals[j - 1]
-                    j -= 1
-                vals[j] = v
-                k += 1
-        if k == 0:
-            out[i] = np.nan
-            continue
-        pos = 0.75 * (k - 1)
-        lo = int(pos)
-        hi = min(lo + 1, k - 1)
-        out[i] = vals[lo] + (pos - lo) * (vals[hi] - vals[lo])
 
 
 def tl_offset_px(xy_px: np.ndarray, hand_xy_px: np.ndarray, bounds: BandBounds,

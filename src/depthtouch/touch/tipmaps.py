@@ -113,6 +113,41 @@ def smooth_heights(depth: np.ndarray, surf: np.ndarray, fact: np.ndarray, valid:
 
 
 @numba.njit(cache=True, nogil=True)
+def core_heights(depth: np.ndarray, surf: np.ndarray, fact: np.ndarray, valid: np.ndarray,
+                 to_mm: float, xy: np.ndarray, out: np.ndarray) -> None:
+    """``out[i]``: the 75th percentile (linear, as ``np.nanpercentile``) of the known heights of
+    the 3x3 pixels around point ``xy[i]``'s nearest pixel, the window clamped to the image; NaN
+    where none is known (:func:`depthtouch.touch.points.core_heights_mm`)."""
+    H, W = depth.shape
+    vals = np.empty(9)
+    for i in range(xy.shape[0]):
+        cx = min(max(int(round(xy[i, 0])), 0), W - 1)
+        cy = min(max(int(round(xy[i, 1])), 0), H - 1)
+        k = 0
+        for dy in range(-1, 2):
+            yy = min(max(cy + dy, 0), H - 1)
+            for dx in range(-1, 2):
+                xx = min(max(cx + dx, 0), W - 1)
+                d = depth[yy, xx]
+                if d == 0 or not valid[yy, xx]:
+                    continue
+                v = pixel_height(d, surf[yy, xx], fact[yy, xx], to_mm)
+                j = k  # insertion sort: 9 values at most
+                while j > 0 and vals[j - 1] > v:
+                    vals[j] = vals[j - 1]
+                    j -= 1
+                vals[j] = v
+                k += 1
+        if k == 0:
+            out[i] = np.nan
+            continue
+        pos = 0.75 * (k - 1)
+        lo = int(pos)
+        hi = min(lo + 1, k - 1)
+        out[i] = vals[lo] + (pos - lo) * (vals[hi] - vals[lo])
+
+
+@numba.njit(cache=True, nogil=True)
 def height_at(depth: np.ndarray, surf: np.ndarray, fact: np.ndarray, valid: np.ndarray,
                to_mm: float, x: float, y: float) -> float:
     """Height (mm) at image point (x, y): the mean of the known pixels of the 3x3 around it;
