@@ -18,7 +18,10 @@ come below ``touch_on_mm`` to start a contact, and a contact lasts while its tip
 ``touch_off_mm``, so that a finger resting at the noise limit does not flicker. A contact whose
 finger's core rises above its own earlier level (``lift_core_mm``, :mod:`.lift`) counts as
 missing though its tip still reads low (at ToF range a hovering finger's outline lies as low as
-a touching tip), and a pending one gains no evidence then.
+a touching tip), and a pending one gains no evidence then. A contact that is down does not
+jump onto a point that an established pending contact lies much nearer to (``yield_ratio``):
+when its own tip drops out for a frame, the nearest point is often a hovering finger or hand
+beside it; it counts as missing instead, and nobody takes that point in that frame.
 Ids are never reused within a run.
 """
 
@@ -37,6 +40,10 @@ from .evidence import XY, evidence_weights, steep_tips
 from .lift import CoreHistory
 
 _BIG = 1e9
+# a pending contact a contact that is down yields a point to (TrackingConfig.yield_ratio): seen
+# in this many frames, with this much evidence
+YIELD_SEEN = 3
+YIELD_EVIDENCE = 1.0
 # cost matrices up to this many entries are built with floats, larger ones with arrays (the
 # break-even on one core: about 10 tracks x 10 points when they are close together)
 _PY_COST_MAX = 100
@@ -188,12 +195,13 @@ class Tracker:
             nearest = [_nearest(row) for row in cost]
             act = [i for i, t in enumerate(tracks) if t.active]
             matched_t = _assign(cost, act, list(range(n_p)), nearest)
+            contested = self._yield(cost, matched_t)
             groups = self._merge_groups(cost, nearest, matched_t, act, area)
             for members in groups.values():
                 for i in members:
                     matched_t.pop(i, None)
             if len(act) < n_t:
-                taken = {*matched_t.values(), *groups}
+                taken = {*matched_t.values(), *groups, *contested}
                 pending = [i for i, t in enumerate(tracks) if not t.active]
                 free = [j for j in range(n_p) if j not in taken]
                 matched_t.update(_assign(cost, pending, free, nearest))
@@ -316,6 +324,25 @@ class Tracker:
                 or c.tip_area_min_mm2 / (scale * scale) < c.tip_area_min_px):
             return -math.inf
         return c.pending_low_mm
+
+    def _yield(self, cost: list[list[float]], matched: dict[int, int]) -> set[int]:
+        """Take back the points that contacts down were given while an established pending
+        contact lies much nearer to them (TrackingConfig.yield_ratio); returns those points,
+        which nobody takes this frame. Edits ``matched`` in place."""
+        cfg = self.config
+        if cfg.yield_ratio <= 0 or self.scale_mm_per_px is None or not matched:
+            return set()
+        pend = [cost[q] for q, t in enumerate(self.tracks)
+                if not t.active and t.seen >= YIELD_SEEN and t.evidence >= YIELD_EVIDENCE]
+        if not pend:
+            return set()
+        contested: set[int] = set()
+        for i, j in list(matched.items()):
+            d = cost[i][j]
+            if d >= cfg.yield_min_mm and any(row[j] <= cfg.yield_ratio * d for row in pend):
+                del matched[i]
+                contested.add(j)
+        return contested
 
     def _cost(self, pos: list[XY], ok_cont: list[bool], ok_new: list[bool]) -> list[list[float]]:
         """Gated distance of each track to each point (_BIG where it may not take the point).
