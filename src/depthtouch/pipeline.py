@@ -82,6 +82,9 @@ class Pipeline:
         skipping it with one warning (a live camera: the next frame may be fine).
     gate: the learning gate of a live camera (see :mod:`depthtouch.surface.gate`); None learns
         from every frame (recordings).
+    path_filter: a path filter to use instead of the one ``config.filter`` names (anything with
+        the :class:`~depthtouch.tracking.filters.TouchFilter` methods, e.g. one that records
+        what it is given: :mod:`depthtouch.evaluation.filterreplay`).
     """
 
     def __init__(
@@ -93,6 +96,7 @@ class Pipeline:
         surface_frames: int | None = None,
         strict: bool = False,
         gate: LearningGate | None = None,
+        path_filter: TouchFilter | None = None,
     ) -> None:
         self.config = (config or PipelineConfig()).validate()
         _warm_up()
@@ -101,7 +105,8 @@ class Pipeline:
         self.stats = PipelineStats()
         self._warned: set[str] = set()
         self.surface = Surface(self.config, surface, learn_frames=surface_frames, gate=gate)
-        self._filter: TouchFilter = make_filter(self.config.filter)
+        self._filter: TouchFilter = (make_filter(self.config.filter) if path_filter is None
+                                     else path_filter)
         self._tracker = Tracker(self.config.tracking, self.config.touchpoints)
         self._reported: dict[int, tuple[float, float]] = {}  # last position sent per id, px
         self._active: set[int] = set()
