@@ -45,6 +45,7 @@ def test_replay_gives_the_pipelines_own_events(record, name):
     assert [(e.frame, e.id, e.state) for e in got] == [(e.frame, e.id, e.state) for e in want]
     np.testing.assert_allclose([(e.x, e.y) for e in got], [(e.x, e.y) for e in want],
                                rtol=0, atol=1e-9)
+    assert all("X" not in e.extra and "area" in e.extra for e in got)
 
 
 def test_replay_scores_as_the_suite_does(record):

@@ -117,8 +117,13 @@ def record_cases(cases: Sequence[SuiteCase], config: PipelineConfig | None = Non
         return list(ex.map(record_case, cases, [config] * len(cases)))
 
 
+_FROM_POSITION = ("X", "Y", "Z", "sx", "sy")  # event fields computed from the position
+
+
 def replay_events(rec: TrackRecord, filt: TouchFilter) -> list[TouchEvent]:
-    """The events ``rec``'s run would have given with ``filt`` as its path filter."""
+    """The events ``rec``'s run would have given with ``filt`` as its path filter (their
+    frame, time, id, state and position; of the other fields, those computed from the
+    position, X/Y/Z and sx/sy, are left out: the recorded ones belong to another position)."""
     outputs: dict[tuple[float, int], tuple[float, float]] = {}
     for call in rec.calls:
         if call[0] == "update":
@@ -143,8 +148,9 @@ def replay_events(rec: TrackRecord, filt: TouchFilter) -> list[TouchEvent]:
             reported.pop(e.id, None)
         else:
             reported[e.id] = xy
+        extra = {k: v for k, v in e.extra.items() if k not in _FROM_POSITION}
         events.append(TouchEvent(e.frame, e.t, e.id, e.state, float(xy[0]), float(xy[1]),
-                                 dict(e.extra)))
+                                 extra))
     return events
 
 
