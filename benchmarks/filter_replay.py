@@ -21,7 +21,7 @@ from pathlib import Path
 
 from depthtouch.config import FilterConfig
 from depthtouch.evaluation.filterreplay import TrackRecord, record_cases, replay
-from depthtouch.evaluation.halves import select_half
+from depthtouch.evaluation.halves import placement, select_half
 from depthtouch.evaluation.metrics import summarize
 from depthtouch.evaluation.suite import load_suite
 from depthtouch.tracking.filters import make_filter
@@ -73,7 +73,7 @@ def main() -> None:
         if args.by_placement:
             groups = defaultdict(list)
             for r, res in zip(records, results, strict=True):
-                groups[f"{r.camera} {r.distance_m:g} m"].append(res)
+                groups[placement(r.case)].append(res)
             for key, rs in sorted(groups.items()):
                 g = summarize(rs)
                 print(f"  {key:58s} {_fmt(g.jitter_rms_mm, '9.3f')} "

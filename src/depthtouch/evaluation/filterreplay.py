@@ -58,14 +58,12 @@ class FilterTap:
 class TrackRecord:
     """What one recording gave the path filter, and what is needed to score a replay.
 
-    calls: the :class:`FilterTap`'s calls; events: the run's events (unfiltered positions);
-    scale_mm_per_px: the pipeline's px -> mm scale at each frame's time (s -> mm per px).
+    case: the suite case recorded; calls: the :class:`FilterTap`'s calls; events: the run's
+    events (unfiltered positions); scale_mm_per_px: the pipeline's px -> mm scale at each
+    frame's time (s -> mm per px).
     """
 
-    label: str
-    group: str
-    camera: str
-    distance_m: float
+    case: SuiteCase
     calls: tuple[tuple[Any, ...], ...]
     events: tuple[TouchEvent, ...]
     scale_mm_per_px: dict[float, float]
@@ -102,9 +100,8 @@ def record_case(case: SuiteCase, config: PipelineConfig | None = None) -> TrackR
     pipeline = Pipeline(cfg, path_filter=tap)
     sink = _Scales(pipeline.surface)
     drive(ArraySource.of_recording(rec, case.label), pipeline, [sink])
-    return TrackRecord(case.label, case.group, case.camera, case.distance_m, tuple(tap.calls),
-                       tuple(sink.events), sink.scale, truth_from_dict(rec.truth, case.label),
-                       cfg.tracking.down_frames)
+    return TrackRecord(case, tuple(tap.calls), tuple(sink.events), sink.scale,
+                       truth_from_dict(rec.truth, case.label), cfg.tracking.down_frames)
 
 
 def record_cases(cases: Sequence[SuiteCase], config: PipelineConfig | None = None,
@@ -160,5 +157,5 @@ def replay(records: Sequence[TrackRecord], filter_config: FilterConfig | str,
     cfg = filter_config if isinstance(filter_config, FilterConfig) else FilterConfig(
         filter_config)
     results = [evaluate(r.truth, replay_events(r, make_filter(cfg)), gate_mm=gate_mm,
-                        settle_frames=r.settle_frames, label=r.label) for r in records]
+                        settle_frames=r.settle_frames, label=r.case.label) for r in records]
     return summarize(results), results
