@@ -86,6 +86,22 @@ class AdaptiveEuroFilter(FilterBase):
     - Ranges: land_frames [0, 10000] (0 turns it off), land_blend_sigmas [0, 100],
       land_sigmas (0, 100], land_restart_frames [0, 16] (under 2 turns the restart off),
       land_restart_sigmas (0, 100].
+    The re-landing (reland_frames >= 2, with the landing on): a finger that stops after a move
+    lands again, instead of waiting ``lock_frames`` for the lock while the 1€ stage closes the
+    last few mm of its lag at the rest cutoff.
+
+    - A touch is marked as moved when the 1€ stage's speed exceeds ``reland_mm_s`` (default
+      40 mm/s, the speed noise of a finger at rest).
+    - A moved touch that is neither landing nor locked, whose last ``reland_frames`` (default 6)
+      medians lie on a line flatter than ``reland_sigmas`` (default 2) standard errors of its
+      slope, starts a landing from those measurements, and is no longer marked.
+    - From there it is the landing above: the output is their mean, blended out as its line
+      steepens, ended by ``land_sigmas`` or ``land_frames``.
+    - A drag slower than ``reland_mm_s`` is never marked and never lands again, so a slow drag
+      is not held; a drag marked by a burst of noise may land again for a few frames, at most a
+      frame's travel plus 1 mm behind (tested).
+    - Ranges: reland_frames [0, 16] (under 2 turns it off), reland_sigmas (0, 100],
+      reland_mm_s [0, 10000].
     Defaults chosen by measurement (docs/filters.md).
     """
 
@@ -110,6 +126,9 @@ class AdaptiveEuroFilter(FilterBase):
         "land_sigmas": Param(6.0, 0.0, 100.0),
         "land_restart_frames": Param(8.0, 0.0, _HB / 2, lo_open=False),
         "land_restart_sigmas": Param(4.0, 0.0, 100.0),
+        "reland_frames": Param(6.0, 0.0, _HB / 2, lo_open=False),
+        "reland_sigmas": Param(2.0, 0.0, 100.0),
+        "reland_mm_s": Param(40.0, 0.0, 10000.0, lo_open=False),
     }
     # the adaptive stage's position (mm) and velocity (mm/s); the smoothed speed vector (mm/s);
     # the 1€ stage's output (mm); the noise: the last two measurements (mm), how many were seen,
@@ -117,11 +136,13 @@ class AdaptiveEuroFilter(FilterBase):
     # the measurements over time (weight, Σt, Σt², Σx, Σtx; t in s relative to the last update);
     # the lock: its mean (mm), its frame count (0 = not locked), its squared radius (mm²);
     # the landing: its flag, the measurement index its window starts at (0 = not restarted),
-    # the last _HB measurements (mm, s) and medians of three (mm), a ring indexed by count
+    # the last _HB measurements (mm, s) and medians of three (mm), a ring indexed by count;
+    # whether it moved faster than reland_mm_s since it last landed
     _FIELDS = {"p": (2,), "v": (2,), "dx": (2,), "e": (2,), "z1": (2,), "z2": (2,), "nz": (1,),
                "sd": (1,), "q0": (1,), "qt": (1,), "qtt": (1,), "qx": (2,), "qtx": (2,),
                "m": (2,), "n": (1,), "r2": (1,), "land": (1,), "ls": (1,),
-               "hx": (_HB,), "hy": (_HB,), "ht": (_HB,), "gx": (_HB,), "gy": (_HB,)}
+               "hx": (_HB,), "hy": (_HB,), "ht": (_HB,), "gx": (_HB,), "gy": (_HB,),
+               "mv": (1,)}
 
     def _init(self, rows: np.ndarray, xy: np.ndarray) -> None:
         st = self._state
@@ -134,6 +155,7 @@ class AdaptiveEuroFilter(FilterBase):
         st["sd"][rows] = self.params["noise_mm"]
         st["land"][rows] = 1.0 if self.params["land_frames"] > 0 else 0.0
         st["ls"][rows] = 0.0
+        st["mv"][rows] = 0.0
         st["hx"][rows, 0] = xy[:, 0]
         st["hy"][rows, 0] = xy[:, 1]
         st["ht"][rows, 0] = self._t[rows]
@@ -167,6 +189,9 @@ class AdaptiveEuroFilter(FilterBase):
         a = a + (1.0 - a) * (1.0 - np.exp2(-((np.hypot(gap[:, 0], gap[:, 1]) / prm["hold_mm"]) ** 2)))
         e = prev + a[:, None] * gap
         s[:, e_col] = e
+        if prm["reland_frames"] >= 2:
+            mv_col = self._COLS["mv"]
+            s[:, mv_col] = np.maximum(s[:, mv_col], (speed > prm["reland_mm_s"])[:, None])
         if prm["lock_frames"] <= 0 and prm["land_frames"] <= 0:
             return e
         sd, med = self._recent(s, xy, dt_s)
@@ -210,22 +235,30 @@ class AdaptiveEuroFilter(FilterBase):
         se = 1.0 / np.sqrt(stt)
         return np.stack([mx, my], axis=1), np.stack([sx, sy], axis=1), se
 
+    def _remember(self, s: np.ndarray, xy: np.ndarray, t: np.ndarray, med: np.ndarray
+                  ) -> np.ndarray:
+        """Keeps this measurement (mm, s) and the median of the last three in each touch's
+        ring; returns the slot written."""
+        c = self._COLS
+        k = ((s[:, c["nz"]][:, 0] - 1.0) % _HB).astype(np.intp)
+        r = np.arange(len(k))
+        s[:, c["hx"]][r, k], s[:, c["hy"]][r, k], s[:, c["ht"]][r, k] = xy[:, 0], xy[:, 1], t
+        s[:, c["gx"]][r, k], s[:, c["gy"]][r, k] = med[:, 0], med[:, 1]
+        return k
+
     def _landing(self, s: np.ndarray, xy: np.ndarray, e: np.ndarray, t: np.ndarray,
-                 sd: np.ndarray, med: np.ndarray) -> np.ndarray:
-        """The landing (see the class doc): updates its fields, returns the output. ``t``: the
-        measurements' time (s); ``sd``: the touch's noise (mm); ``med``: the median of its last
-        three measurements."""
+                 sd: np.ndarray, med: np.ndarray, locked: np.ndarray) -> np.ndarray:
+        """The landing and the re-landing (see the class doc): updates their fields, returns the
+        output. ``t``: the measurements' time (s); ``sd``: the touch's noise (mm); ``med``: the
+        median of its last three measurements; ``locked``: the touches the lock holds."""
         c = self._COLS
         prm = self.params
         cnt = s[:, c["nz"]][:, 0]  # measurements so far, this one included
-        k = ((cnt - 1.0) % _HB).astype(np.intp)
-        r = np.arange(len(k))
+        k = self._remember(s, xy, t, med)
         hx, hy, ht = s[:, c["hx"]], s[:, c["hy"]], s[:, c["ht"]]
-        hx[r, k], hy[r, k], ht[r, k] = xy[:, 0], xy[:, 1], t
         # the measurement index each slot holds (the newest with that remainder)
         j = (cnt - 1.0)[:, None] - ((k[:, None] - np.arange(_HB)[None, :]) % _HB)
         gx, gy = s[:, c["gx"]], s[:, c["gy"]]
-        gx[r, k], gy[r, k] = med[:, 0], med[:, 1]
         land = s[:, c["land"]][:, 0] > 0
         ls = s[:, c["ls"]][:, 0]
         kc = prm["land_restart_frames"]
@@ -245,6 +278,19 @@ class AdaptiveEuroFilter(FilterBase):
                 flat = np.hypot(sl[:, 0], sl[:, 1]) <= 0.5 * prm["land_sigmas"] * se * sd
                 go = old & (zc > prm["land_restart_sigmas"]) & flat
                 ls = np.where(go, cnt - kc, ls)
+        kr = prm["reland_frames"]
+        if kr >= 2:
+            # a touch that moved, is neither landing nor locked and whose last reland_frames
+            # medians are flat lands again from those (a finger that stopped after a move)
+            idle = ~land & ~locked & (cnt >= kr + 2.0) & (s[:, c["mv"]][:, 0] > 0)
+            if idle.any():
+                rec = (j > (cnt - 1.0 - kr)[:, None]) & (j >= 0)
+                _, sl, se = self._line(gx, gy, ht, rec.astype(np.float64))
+                flat = np.hypot(sl[:, 0], sl[:, 1]) <= prm["reland_sigmas"] * se * sd
+                go = idle & flat
+                ls = np.where(go, cnt - kr, ls)
+                land = land | go
+                s[:, c["mv"]] = np.where(go, 0.0, s[:, c["mv"]][:, 0])[:, None]
         win = (j >= np.maximum(ls, cnt - _HB)[:, None]) & (j >= 0)
         age = np.maximum((cnt - 1.0)[:, None] - j, 0.0)
         keep = 1.0 - 1.0 / max(prm["land_frames"], prm["lock_frames"], 2.0)
@@ -287,8 +333,12 @@ class AdaptiveEuroFilter(FilterBase):
         seen = s[:, c["nz"]][:, 0] - 1.0  # measurements so far, this one included
         speed = np.hypot(slope[:, 0], slope[:, 1])
         still = (seen >= lock_frames) & (speed <= prm["lock_mm_s"]) & (prm["lock_frames"] > 0)
-        if (s[:, c["land"]] > 0).any():
-            e = self._landing(s, xy, e, s[:, 2] + dt_s, sd, med)
+        locked = s[:, c["n"]][:, 0] > 0
+        reland = prm["reland_frames"] >= 2 and prm["land_frames"] > 0
+        if (s[:, c["land"]] > 0).any() or (reland and (s[:, c["mv"]][~locked] > 0).any()):
+            e = self._landing(s, xy, e, s[:, 2] + dt_s, sd, med, locked)
+        elif reland:  # the ring must hold a touch's last measurements when it lands again
+            self._remember(s, xy, s[:, 2] + dt_s, med)
         # a lock holds while the median of the last three measurements (a one-frame jump does
         # not move it) stays within its radius
         m, n, r2 = s[:, c["m"]], s[:, c["n"]][:, 0], s[:, c["r2"]][:, 0]
