@@ -343,9 +343,16 @@ def _extremity_point(
     px = pts[:, 0] - hand[0]
     py = pts[:, 1] - hand[1]
     s_all = px * dx + py * dy
-    firm = firm_map[pts[:, 1].astype(np.intp), pts[:, 0].astype(np.intp)]
+    # ... and only within 2 px of the region's own extent across the finger: beside it lies
+    # another finger or the hand's side
+    lat_all = py * dx - px * dy
+    ry, rx = np.nonzero(reg)
+    lat_reg = (ry - hand[1]) * dx - (rx - hand[0]) * dy
+    iy, ix = pts[:, 1].astype(np.intp), pts[:, 0].astype(np.intp)
+    beside = (lat_all >= lat_reg.min() - 2.0) & (lat_all <= lat_reg.max() + 2.0)
+    firm = (reg[iy, ix] > 0) | (firm_map[iy, ix] & beside)
     s = s_all[firm]
-    lat = (py * dx - px * dy)[firm]
+    lat = lat_all[firm]
     # Front of the tip: the farthest 1-px slice along the finger that is at least half a tip
     # radius wide (a one-pixel noise spur in front of the tip is not the tip).
     s0 = float(s.min())

@@ -211,7 +211,9 @@ def test_heights_behind_a_fingertip_rise_and_behind_a_held_books_edge_are_level(
     nearer of those 20 mm to its sides, max - min) read by TrackingConfig.flat_max_mm: a finger
     stands above the surface beside it whatever its pitch; a patch of a book's top that dips
     into the band (its top lies just above Tu, so noise and mixed pixels cut it) has the book's
-    level top behind it."""
+    level top behind it: on four noise seeds its spread stays well under flat_max_mm's 10 mm
+    (measured 1.0-5.3 mm; 0.9-5.1 mm before session 23's lateral limit on the tip's firm
+    pixels moved its point by up to 0.9 px)."""
     for pitch in (8.0, 15.0, 35.0, 60.0):  # a finger nearly flat still stands above its sides
         tip = detect(bounds, [Finger(320, 240, 90, pitch_deg=pitch)])
         assert len(tip) == 1 and tip.back_spread_mm is not None
@@ -220,9 +222,10 @@ def test_heights_behind_a_fingertip_rise_and_behind_a_held_books_edge_are_level(
     book[200:320, 300:] = 27.0  # 200 mm wide, from x = 300 to the image border (held there)
     patch = int(15 / MM_PER_PX)
     book[250:250 + patch, 300:300 + patch] = 15.0  # its corner dips into the band
-    tp = detect(bounds, [], flat=book)
-    assert len(tp) >= 1 and tp.back_spread_mm is not None
-    assert (tp.back_spread_mm < 4.0).all()
+    for seed in range(4):
+        tp = detect(bounds, [], flat=book, seed=seed)
+        assert len(tp) >= 1 and tp.back_spread_mm is not None
+        assert (tp.back_spread_mm < 6.5).all(), seed
 
 
 def test_the_faint_rim_around_a_tip_lowers_its_height_but_does_not_move_its_point():

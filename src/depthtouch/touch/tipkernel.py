@@ -35,6 +35,11 @@ N_OUT = 10
 #: tip's height); the contact point is placed on those above the firmer fraction
 _GROW_TL = 0.5
 _FIRM_TL = 0.85
+#: a grown pixel is firm only within this many px of the region's own extent across the finger:
+#: the growth reaches 2 tip radii, and beside a fingertip that is another finger (hovering next to
+#: it, or the hand's side), whose pixels pulled the contact toward it (docs/accuracy.md section 7,
+#: session 23)
+_FIRM_LAT_PX = 2.0
 
 
 @numba.njit(cache=True, nogil=True)
@@ -256,7 +261,8 @@ def _frame_points(
                 if nn < 1e-6:
                     continue
                 own = _own(part, band, x0 - ox0, y0 - oy0)
-                fx, fy, firm = _grow(part, own, hs, tl, x0, y0, rr)
+                fx, fy, firm = _grow(part, own, hs, tl, x0, y0, rr, phx, phy, ddx / nn,
+                                     ddy / nn)
                 px_, py_, ph = extremity(fx, fy, firm, hs, phx, phy, ddx / nn, ddy / nn, r0)
             out[n_out, 0] = px_ + x0
             out[n_out, 1] = py_ + y0
@@ -341,12 +347,24 @@ def _own(part: np.ndarray, band: np.ndarray, dx: int, dy: int) -> np.ndarray:
 
 @numba.njit(cache=True, nogil=True)
 def _grow(part: np.ndarray, own: np.ndarray, hs: np.ndarray, tl: np.ndarray, x0: int, y0: int,
-          rr: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+          rr: int, hx: float, hy: float, ux: float, uy: float
+          ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The finger's pixels near its tip: the part grown into raised pixels within 2 rr of it
     that are its ``own``, and connected to it (4-neighbours). Returns their x, y and whether
-    each is firm: in the part, or raised above ``_FIRM_TL`` Tl (the others are the faint rim
-    above ``_GROW_TL`` Tl, see :func:`fingertip.extremity`)."""
+    each is firm: in the part, or raised above ``_FIRM_TL`` Tl and within ``_FIRM_LAT_PX`` of
+    the part's extent across the finger (the finger runs from the hand at (hx, hy) along the
+    unit (ux, uy)); the others are the faint rim above ``_GROW_TL`` Tl and the raised pixels
+    beside the finger, which give the tip's height but not its point (see
+    :func:`fingertip.extremity`)."""
     h, w = part.shape
+    lat_lo, lat_hi = np.inf, -np.inf
+    for y in range(h):
+        for x in range(w):
+            if part[y, x]:
+                lat = (y - hy) * ux - (x - hx) * uy
+                lat_lo, lat_hi = min(lat_lo, lat), max(lat_hi, lat)
+    lat_lo -= _FIRM_LAT_PX
+    lat_hi += _FIRM_LAT_PX
     reach = near_mask(part, 2 * rr)
     grown = np.zeros((h, w), np.uint8)
     for y in range(h):
@@ -375,7 +393,12 @@ def _grow(part: np.ndarray, own: np.ndarray, hs: np.ndarray, tl: np.ndarray, x0:
         top -= 1
         y, x = stack_y[top], stack_x[top]
         fx[n], fy[n] = x, y
-        firm[n] = part[y, x] != 0 or hs[y, x] > max(_FIRM_TL * tl[y0 + y, x0 + x], 2.0)
+        if part[y, x]:
+            firm[n] = True
+        else:
+            lat = (y - hy) * ux - (x - hx) * uy
+            firm[n] = (hs[y, x] > max(_FIRM_TL * tl[y0 + y, x0 + x], 2.0)
+                       and lat_lo <= lat <= lat_hi)
         n += 1
         for k in range(4):
             yy = y + (1 if k == 0 else -1 if k == 1 else 0)
