@@ -139,7 +139,7 @@ def find_touch_points(
                 center = ((float(pts[:, 0].mean()), float(pts[:, 1].mean()))
                           if len(parts) == 1 else None)
                 pt = _extremity_point(reg, hs, hand, r0, bounds.tl_mm[y0:y1, x0:x1], k_reach,
-                                      part_own, center)
+                                      part_own, center, config.tip_beside_px)
             if pt is None:
                 continue
             xy_out.append((pt[0] + x0, pt[1] + y0))
@@ -308,6 +308,7 @@ def _extremity_point(
     k_reach: np.ndarray,
     own: np.ndarray | None = None,
     center: tuple[float, float] | None = None,
+    beside: float = 2.0,
 ) -> tuple[float, float, float] | None:
     # The finger's shape near the tip: the region grown into raised pixels nearby on the
     # smoothed map (noise averaged over 9 px): the tip cap that Tl cut away, and the finger body
@@ -343,14 +344,14 @@ def _extremity_point(
     px = pts[:, 0] - hand[0]
     py = pts[:, 1] - hand[1]
     s_all = px * dx + py * dy
-    # ... and only within 2 px of the region's own extent across the finger: beside it lies
-    # another finger or the hand's side
+    # ... and only within ``beside`` px of the region's own extent across the finger: beside it
+    # lies another finger or the hand's side
     lat_all = py * dx - px * dy
     ry, rx = np.nonzero(reg)
     lat_reg = (ry - hand[1]) * dx - (rx - hand[0]) * dy
     iy, ix = pts[:, 1].astype(np.intp), pts[:, 0].astype(np.intp)
-    beside = (lat_all >= lat_reg.min() - 2.0) & (lat_all <= lat_reg.max() + 2.0)
-    firm = (reg[iy, ix] > 0) | (firm_map[iy, ix] & beside)
+    near = (lat_all >= lat_reg.min() - beside) & (lat_all <= lat_reg.max() + beside)
+    firm = (reg[iy, ix] > 0) | (firm_map[iy, ix] & near)
     s = s_all[firm]
     lat = lat_all[firm]
     # Front of the tip: the farthest 1-px slice along the finger that is at least half a tip

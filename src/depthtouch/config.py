@@ -170,6 +170,14 @@ class TouchPointConfig:
         0.5, 1.70 / 5.75 at 0.6, with jitter 0.90, 0.91, 0.92, 0.96 mm; on the default suite
         0.4 gives 1.16 / 4.50 mm against 1.25 / 4.84 off, jitter 0.47 against 0.42 mm (range
         [0, 5], 0 = off).
+    tip_beside_px: the extremity method grows a tip's region into the raised pixels within two
+        tip radii (its cap, cut away by Tl); of those, only the ones within this many px of
+        the region's own extent across the finger place the contact (all give its height).
+        Beside a tip lies another finger or the hand's side: a middle finger hovering 21 mm
+        beside a touching index pulled its contact 8 mm toward it. Default 2, chosen on the
+        tune sides of the hard suites (1 px: error lower still, but more id switches and false
+        touches at ToF range; 3 px: most of the gain gone); docs/accuracy.md section 7,
+        session 23 (range [0, 1000]; 1000 = no limit, as before).
     """
 
     method: str = "extremity"
@@ -180,6 +188,7 @@ class TouchPointConfig:
     paper_tt_mm: float = 18.0
     tip_axis_mm: float = 9.0
     tip_tl_shift: float = 0.4
+    tip_beside_px: float = 2.0
 
     def validate(self) -> None:
         if self.method not in ("extremity", "paper"):
@@ -193,6 +202,7 @@ class TouchPointConfig:
         _range("touchpoints.paper_tt_mm", self.paper_tt_mm, 0.0, 200.0, lo_open=True)
         _range("touchpoints.tip_axis_mm", self.tip_axis_mm, 0.0, 50.0)
         _range("touchpoints.tip_tl_shift", self.tip_tl_shift, 0.0, 5.0)
+        _range("touchpoints.tip_beside_px", self.tip_beside_px, 0.0, 1000.0)
 
 
 @dataclass(frozen=True)

@@ -6,7 +6,9 @@ Two estimators, selectable by ``TouchPointConfig.method``:
   direction from that attachment to the region points along the finger to its tip. The region is
   grown into neighbouring pixels that pass a lower threshold on a 3x3-smoothed height map (the
   tip cap that Tl cut away; these give the tip's height). On the firm ones among them (the region
-  and those above 0.85 Tl: the faint rim flickers by a pixel from frame to frame) the front edge
+  and those above 0.85 Tl: the faint rim flickers by a pixel from frame to frame; and of those,
+  only within ``tip_beside_px`` (2) of the region's own extent across the finger: the growth
+  reaches two tip radii, and beside a tip lies another finger or the hand's side) the front edge
   of the tip is found along the finger direction, the finger's width behind the tip gives its
   radius r, and the contact point is the centre of the rounded tip, under which it rests on the
   surface: the mean of the pi r^2 / 2 front-most pixels, less 4 r / (3 pi). Sub-pixel. That
@@ -70,7 +72,7 @@ def find_touch_points(
         KernelSurface(b.high_lo, b.high_hi, b.surface_mm, b.factor, b.tl_mm, b.valid, b.to_mm),
         KernelRegions(core, pad, regions.bbox_xywh, regions.mask_buf, regions.mask_start),
         TipParams(config.tip_radius_mm / b.mm_per_px, config.method == "paper",
-                  config.paper_ds_px, config.paper_tt_mm, b.mm_per_px),
+                  config.paper_ds_px, config.paper_tt_mm, b.mm_per_px, config.tip_beside_px),
     )
     if out.xy_px.shape[0] == 0:
         return TouchPoints.empty()

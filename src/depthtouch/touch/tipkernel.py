@@ -35,11 +35,6 @@ N_OUT = 10
 #: tip's height); the contact point is placed on those above the firmer fraction
 _GROW_TL = 0.5
 _FIRM_TL = 0.85
-#: a grown pixel is firm only within this many px of the region's own extent across the finger:
-#: the growth reaches 2 tip radii, and beside a fingertip that is another finger (hovering next to
-#: it, or the hand's side), whose pixels pulled the contact toward it (docs/accuracy.md section 7,
-#: session 23)
-_FIRM_LAT_PX = 2.0
 
 
 @numba.njit(cache=True, nogil=True)
@@ -109,14 +104,16 @@ class KernelRegions(NamedTuple):
 
 class TipParams(NamedTuple):
     """The fingertip radius (px), the estimator (the paper's pixel or the tip's centre), the
-    paper's parameters (search step in px, height threshold in mm) and the surface's scale (mm
-    per px, where the heights behind a tip are read)."""
+    paper's parameters (search step in px, height threshold in mm), the surface's scale (mm
+    per px, where the heights behind a tip are read) and how far beside its region a grown
+    pixel may place the contact (px, ``TouchPointConfig.tip_beside_px``)."""
 
     tip_radius_px: float
     paper: bool
     paper_ds_px: int
     paper_tt_mm: float
     mm_per_px: float
+    beside_px: float = 2.0
 
 
 class FramePoints(NamedTuple):
@@ -150,7 +147,7 @@ def frame_points(depth: np.ndarray, hands: np.ndarray, hand_scale: int, surface:
                         s.tl_mm, s.valid, float(s.to_mm), r.core, int(r.open_pad_px),
                         r.bbox_xywh, r.mask_buf, r.mask_start, float(p.tip_radius_px),
                         1 if p.paper else 0, int(p.paper_ds_px), float(p.paper_tt_mm),
-                        float(p.mm_per_px))
+                        float(p.mm_per_px), float(p.beside_px))
     return FramePoints(out[:, 0:2].copy(), out[:, 2].copy(), out[:, 3].astype(np.int64),
                        out[:, 4:6].copy(), out[:, 6] > 0, out[:, 7].astype(np.int64),
                        out[:, 8].copy(), out[:, 9].copy())
@@ -161,7 +158,7 @@ def _frame_points(
     depth: np.ndarray, high_lo: np.ndarray, high_hi: np.ndarray, hands: np.ndarray, scale: int,
     surf: np.ndarray, fact: np.ndarray, tl: np.ndarray, valid: np.ndarray, to_mm: float,
     core: np.ndarray, open_pad: int, boxes: np.ndarray, masks: np.ndarray, mask_start: np.ndarray,
-    r0: float, method: int, paper_ds: int, paper_tt: float, mm_px: float,
+    r0: float, method: int, paper_ds: int, paper_tt: float, mm_px: float, beside_px: float,
 ) -> np.ndarray:
     """Touch points of all regions of a frame: (N, 10) rows (see the module doc).
 
@@ -262,7 +259,7 @@ def _frame_points(
                     continue
                 own = _own(part, band, x0 - ox0, y0 - oy0)
                 fx, fy, firm = _grow(part, own, hs, tl, x0, y0, rr, phx, phy, ddx / nn,
-                                     ddy / nn)
+                                     ddy / nn, beside_px)
                 px_, py_, ph = extremity(fx, fy, firm, hs, phx, phy, ddx / nn, ddy / nn, r0)
             out[n_out, 0] = px_ + x0
             out[n_out, 1] = py_ + y0
@@ -347,11 +344,11 @@ def _own(part: np.ndarray, band: np.ndarray, dx: int, dy: int) -> np.ndarray:
 
 @numba.njit(cache=True, nogil=True)
 def _grow(part: np.ndarray, own: np.ndarray, hs: np.ndarray, tl: np.ndarray, x0: int, y0: int,
-          rr: int, hx: float, hy: float, ux: float, uy: float
+          rr: int, hx: float, hy: float, ux: float, uy: float, beside: float
           ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The finger's pixels near its tip: the part grown into raised pixels within 2 rr of it
     that are its ``own``, and connected to it (4-neighbours). Returns their x, y and whether
-    each is firm: in the part, or raised above ``_FIRM_TL`` Tl and within ``_FIRM_LAT_PX`` of
+    each is firm: in the part, or raised above ``_FIRM_TL`` Tl and within ``beside`` px of
     the part's extent across the finger (the finger runs from the hand at (hx, hy) along the
     unit (ux, uy)); the others are the faint rim above ``_GROW_TL`` Tl and the raised pixels
     beside the finger, which give the tip's height but not its point (see
@@ -363,8 +360,8 @@ def _grow(part: np.ndarray, own: np.ndarray, hs: np.ndarray, tl: np.ndarray, x0:
             if part[y, x]:
                 lat = (y - hy) * ux - (x - hx) * uy
                 lat_lo, lat_hi = min(lat_lo, lat), max(lat_hi, lat)
-    lat_lo -= _FIRM_LAT_PX
-    lat_hi += _FIRM_LAT_PX
+    lat_lo -= beside
+    lat_hi += beside
     reach = near_mask(part, 2 * rr)
     grown = np.zeros((h, w), np.uint8)
     for y in range(h):
