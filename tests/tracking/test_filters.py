@@ -388,7 +388,7 @@ def test_landing_lets_a_drag_from_touch_down_go(speed_mm_s):
     on the output is exactly the landing-free filter's; meanwhile it lags that by at most a
     frame's travel plus 1 mm (half a frame's, when the slope was tested on the raw measurements;
     the median costs its frame: 7.2 against 3.9 mm at 200 mm/s on one seed). With the
-    re-landing on (the default), the noise may raise the speed estimate over ``reland_mm_s``
+    re-landing on (off by default), the noise may raise the speed estimate over ``reland_mm_s``
     and six medians may look flat, so a landing can begin again later in the drag: it stays
     within the same bound."""
     t = np.arange(60) / 30
@@ -402,7 +402,7 @@ def test_landing_lets_a_drag_from_touch_down_go(speed_mm_s):
         assert differs.size == 0 or differs.max() < (30 if speed_mm_s < 20 else 14)
         extra = free[:, 0] - out[:, 0]  # how much farther behind the landing is
         assert extra.max() <= speed_mm_s / 30 + 1.0
-        again = _run(make_filter("adaptive_euro"), t, drag)
+        again = _run(make_filter("adaptive_euro", reland_frames=6), t, drag)
         assert (free[:, 0] - again[:, 0]).max() <= speed_mm_s / 30 + 1.0
 
 
@@ -482,7 +482,7 @@ def test_relanding_does_not_hold_a_slow_drag():
     for seed in range(5):
         drag = np.stack([100.0 + 10.0 * t, 100.0 + 0 * t], axis=1)
         drag = drag + np.random.default_rng(seed).normal(0, 0.5, (90, 2))
-        on = _run(make_filter("adaptive_euro", lock_frames=0), t, drag)
+        on = _run(make_filter("adaptive_euro", lock_frames=0, reland_frames=6), t, drag)
         off = _run(make_filter("adaptive_euro", lock_frames=0, reland_frames=0), t, drag)
         np.testing.assert_array_equal(on, off)
 
