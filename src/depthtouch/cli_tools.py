@@ -226,6 +226,7 @@ def _add_gestures(sub: argparse._SubParsersAction) -> None:
 # --- sim ----------------------------------------------------------------------------------------
 def _add_sim(sub: argparse._SubParsersAction) -> None:
     from .sim import ALL_SCENES, CAMERAS, SURFACES
+    from .sim.hand import HAND_STYLES
 
     p = sub.add_parser("sim", help="render a simulated depth recording with ground truth")
     p.add_argument("scene", help=f"one of {', '.join(ALL_SCENES)}")
@@ -235,6 +236,8 @@ def _add_sim(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--distance", type=float, default=1.0, help="surface distance, m [0.5, 2.5]")
     p.add_argument("--tilt", type=float, default=0.0, help="surface tilt, deg [0, 40]")
     p.add_argument("--surface", default="plane", help=f"one of {', '.join(SURFACES)}")
+    p.add_argument("--hand", default="capsule",
+                   help=f"hand model, one of {', '.join(HAND_STYLES)} (docs/simulator.md)")
     p.add_argument("--seed", type=int, default=0, help="random seed (>= 0)")
     p.add_argument("--fps", type=float, default=30.0, help="frame rate, Hz [1, 120]")
     p.add_argument("--no-noise", action="store_true", help="exact geometry, no sensor noise")
@@ -260,7 +263,7 @@ def _add_sim(sub: argparse._SubParsersAction) -> None:
 
         rec = render_scene(
             a.scene, camera=a.camera, distance_m=a.distance, tilt_deg=a.tilt,
-            surface=a.surface, seed=a.seed, fps=a.fps, noise=not a.no_noise,
+            surface=a.surface, seed=a.seed, fps=a.fps, noise=not a.no_noise, hand=a.hand,
         )
         write_recording(rec, a.out, a.truth)
         if not a.quiet:

@@ -1,7 +1,7 @@
 """The evaluation suite: simulator scenes with fixed seeds, rendered on demand, cached, evaluated.
 
 A suite file (TOML; the committed one is ``sim/suites/default.toml``) lists groups of cases; each
-group is a grid of scenes x cameras x distances x surfaces x tilts x seeds::
+group is a grid of scenes x cameras x distances x surfaces x tilts x hands x seeds::
 
     [suite]
     name = "default"
@@ -14,6 +14,7 @@ group is a grid of scenes x cameras x distances x surfaces x tilts x seeds::
     distances_m = [1.0]
     surfaces = ["plane"]           # default ["plane"]
     tilts_deg = [0.0]              # default [0.0]
+    hands = ["capsule"]            # default ["capsule"]; or "anatomic" (docs/simulator.md)
     seeds = [1]
     tags = ["quick"]               # optional: subsets a run may select
 
@@ -30,6 +31,7 @@ from __future__ import annotations
 
 import dataclasses
 import hashlib
+import itertools
 import json
 import os
 import sys
@@ -70,16 +72,19 @@ class SuiteCase:
     seed: int = 0
     fps: float = 30.0
     group: str = ""
+    hand: str = "capsule"
 
     @property
     def label(self) -> str:
         surf = "" if self.surface == "plane" else f"/{self.surface}"
         tilt = f"/tilt{self.tilt_deg:g}" if self.tilt_deg else ""
-        return f"{self.scene}/{self.camera}/{self.distance_m:g}m{surf}{tilt}/s{self.seed}"
+        hand = "" if self.hand == "capsule" else f"/{self.hand}"
+        return f"{self.scene}/{self.camera}/{self.distance_m:g}m{surf}{tilt}{hand}/s{self.seed}"
 
     def render_kwargs(self) -> dict[str, Any]:
-        return {"camera": self.camera, "distance_m": self.distance_m, "tilt_deg": self.tilt_deg,
-                "surface": self.surface, "seed": self.seed, "fps": self.fps}
+        kw = {"camera": self.camera, "distance_m": self.distance_m, "tilt_deg": self.tilt_deg,
+              "surface": self.surface, "seed": self.seed, "fps": self.fps}
+        return kw if self.hand == "capsule" else {**kw, "hand": self.hand}
 
     def cache_key(self) -> str:
         """Hash of the scene parameters, the package version and the simulator source."""
@@ -116,6 +121,12 @@ def _sim_names() -> tuple[tuple[str, ...], tuple[str, ...]]:
     from ..sim import ALL_SCENES, CAMERAS, HARD_CAMERAS
 
     return ALL_SCENES, tuple(CAMERAS) + tuple(HARD_CAMERAS)
+
+
+def _hand_styles() -> tuple[str, ...]:
+    from ..sim.hand import HAND_STYLES
+
+    return HAND_STYLES
 
 
 def _all_default(group: dict[str, Any], key: str, names: list[Any]) -> list[Any]:
@@ -169,7 +180,7 @@ def suite_from_dict(data: dict[str, Any], where: str = "suite") -> Suite:
         gname = str(g.get("name", f"group{i}"))
         gw = f"{where}: group {gname}"
         known = {"name", "scenes", "cameras", "distances_m", "surfaces", "tilts_deg", "seeds",
-                 "fps", "tags"}
+                 "fps", "tags", "hands"}
         unknown = sorted(set(g) - known)
         if unknown:
             raise ConfigError(
@@ -180,6 +191,7 @@ def suite_from_dict(data: dict[str, Any], where: str = "suite") -> Suite:
         dists = _numbers(_list(g, "distances_m", None, gw), "distances_m", gw, 0.3, 5.0)
         surfs = _list(g, "surfaces", ["plane"], gw, SURFACES)
         tilts = _numbers(_list(g, "tilts_deg", [0.0], gw), "tilts_deg", gw, 0.0, 80.0)
+        hands = _list(g, "hands", ["capsule"], gw, _hand_styles())
         seeds = _list(g, "seeds", [0], gw)
         if any(isinstance(s, bool) or not isinstance(s, int) or s < 0 for s in seeds):
             raise ConfigError(f"{gw}: seeds must be whole numbers >= 0")
@@ -191,11 +203,10 @@ def suite_from_dict(data: dict[str, Any], where: str = "suite") -> Suite:
             for cam in cams:
                 for d in dists:
                     for surf in surfs:
-                        for tilt in tilts:
-                            for seed in seeds:
-                                c = SuiteCase(s, cam, d, surf, tilt, int(seed), fps, gname)
-                                key = dataclasses.replace(c, group="")
-                                cases.setdefault(key, (c, set()))[1].update(tags)
+                        for tilt, hand, seed in itertools.product(tilts, hands, seeds):
+                            c = SuiteCase(s, cam, d, surf, tilt, int(seed), fps, gname, hand)
+                            key = dataclasses.replace(c, group="")
+                            cases.setdefault(key, (c, set()))[1].update(tags)
     ordered = [c for c, _ in cases.values()]
     return Suite(name, float(gate), tuple(ordered),
                  {c: frozenset(t) for c, t in cases.values()})

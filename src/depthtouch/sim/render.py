@@ -19,7 +19,7 @@ from ..errors import ConfigError, SourceError
 from ..files import write_text_atomic
 from .cameras import NoiseModel, get_profile
 from .geometry import Primitive, Rays, Surface, make_surface, render_primitives, rotation_xyz
-from .hand import FINGERS, build_hand
+from .hand import FINGERS, HAND_STYLES, build_hand
 from .scenes import HOVER_MAX_MM, SceneContext, Script, build_script
 
 TRUTH_FORMAT = "depthtouch-truth/1"
@@ -101,6 +101,7 @@ def render_scene(
     fps: float = 30.0,
     noise: bool = True,
     keep_labels: bool = False,
+    hand: str = "capsule",
 ) -> SimRecording:
     """Render ``scene`` (see :data:`~depthtouch.sim.SCENES`) as seen by ``camera``.
 
@@ -110,16 +111,20 @@ def render_scene(
     seed: picks hand sizes, positions, timings and noise; equal seeds give equal recordings.
     fps: frame rate, [1, 120] Hz (default 30). noise: False gives exact geometry rounded to mm.
     keep_labels: also return a per-pixel label stack (for tests and figures; N*H*W bytes).
+    hand: the hand model, "capsule" (default) or "anatomic" (tapered phalanges, a flattened pad
+    that presses into the surface; :class:`~depthtouch.sim.hand.Anatomy`).
     Unknown names or out-of-range values raise ConfigError naming the valid ones.
     """
     profile = get_profile(camera)
     world_surface = make_surface(surface, distance_m, tilt_deg)
     check_render_args(fps, seed)
+    if hand not in HAND_STYLES:
+        raise ConfigError(f"unknown hand {hand!r}; use one of {', '.join(HAND_STYLES)}")
     rays = Rays(profile.K, profile.resolution_wh)
     # independent streams for the script and the noise (SeedSequence works on numpy < 1.25)
     scene_rng, noise_rng = (np.random.default_rng(s)
                             for s in np.random.SeedSequence(int(seed)).spawn(2))
-    script = build_script(scene, SceneContext(world_surface, rays, scene_rng))
+    script = build_script(scene, SceneContext(world_surface, rays, scene_rng, hand))
     n = max(int(round(script.duration_s * fps)), 1)
     w, h = profile.resolution_wh
     depth = np.empty((n, h, w), np.uint16)
@@ -238,7 +243,9 @@ def _truth_doc(scene: str, seed: int, camera: str, rays: Rays, fps: float, surf:
         "events": sorted(events, key=lambda e: e["frame"]),
         "hands": [{"side": "right" if hnd.shape.side > 0 else "left",
                    "finger_radius_mm": round(hnd.shape.finger_radius_mm, 3),
-                   "fingers": list(hnd.fingers)} for hnd in script.hands],
+                   "fingers": list(hnd.fingers),
+                   **({} if hnd.shape.anatomy is None else {"model": "anatomic"})}
+                  for hnd in script.hands],
     }
     if script.bump_s is not None:
         doc["bump"] = {"frame": _frame_of(script.bump_s, fps),

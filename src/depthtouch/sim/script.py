@@ -103,12 +103,15 @@ class Script:
 
 
 class SceneContext:
-    """What a scene script needs: the world surface, the camera rays, a generator."""
+    """What a scene script needs: the world surface, the camera rays, a generator, and which
+    hand model its hands are (:data:`~depthtouch.sim.hand.HAND_STYLES`)."""
 
-    def __init__(self, surface: Surface, rays: Rays, rng: np.random.Generator) -> None:
+    def __init__(self, surface: Surface, rays: Rays, rng: np.random.Generator,
+                 hand_style: str = "capsule") -> None:
         self.surface = surface
         self.rays = rays
         self.rng = rng
+        self.hand_style = hand_style
         self.base_yaw = self._base_yaw()
 
     def _base_yaw(self) -> float:
@@ -143,7 +146,7 @@ class SceneContext:
         return float(np.linalg.norm(a - b)) / 0.4
 
     def hand(self, side: int = 1) -> HandShape:
-        return HandShape.random(self.rng, side)
+        return HandShape.random(self.rng, side, self.hand_style)
 
     def outside(self, st: np.ndarray, yaw: float) -> np.ndarray:
         """The first surface point behind ``st`` (against the finger direction) out of view.

@@ -11,7 +11,7 @@ from typing import Any
 from ..errors import ConfigError, SourceError
 from .base import ArraySource
 
-_OPTIONS = ("camera", "distance_m", "tilt_deg", "surface", "seed", "fps", "noise")
+_OPTIONS = ("camera", "distance_m", "tilt_deg", "surface", "seed", "fps", "noise", "hand")
 
 
 class SimSource(ArraySource):
