@@ -45,8 +45,29 @@ FLOORS_MAX: dict[str, float] = {
 }
 
 
-def _held_out_figures() -> dict[str, Any]:
-    s = load_suite("hard")
+# hard-fresh3 (session 25): the same situations with the simulator's other hand
+# (hand="anatomic"), held-out half, measured with the defaults of session 25 before any tuning
+# on it: recall 0.952, 2.04 false touches per minute, 2 of them from hovers >= 25 mm, 2 later
+# than 2 s after a surface change, 1 id switch, error median 3.63 / p95 8.86 mm, jitter
+# 1.21 mm, angle error 8.40 deg, recall under drift 0.875, touch-down latency median 0. Worse
+# than hard's on every measure: the sensor's tip estimate assumes a rounded tip as thick as the
+# finger is wide (docs/accuracy.md, session 25). Regression guards, not targets.
+FRESH3_MIN: dict[str, float] = {"recall_working": 0.94, "recall_drift": 0.87}
+FRESH3_MAX: dict[str, float] = {
+    "false_per_min": 2.5,
+    "false_from_hover_25mm": 2,
+    "id_switches": 2,
+    "error_median_mm": 3.9,
+    "error_p95_mm": 9.3,
+    "jitter_rms_mm": 1.35,
+    "angle_error_deg": 9.0,
+    "false_late_after_change": 2,
+    "down_latency_median_frames": 1.0,
+}
+
+
+def _held_out_figures(name: str = "hard") -> dict[str, Any]:
+    s = load_suite(name)
     cases = select_half(s.cases, HELD_OUT)
     res = run_cases(cases, gate_mm=s.gate_mm, workers=2, cache=cache_root())
     far = [FAR_TAG in s.tags.get(c, frozenset()) for c in cases]
@@ -55,8 +76,13 @@ def _held_out_figures() -> dict[str, Any]:
 
 
 @pytest.mark.slow
-def test_hard_held_out_half_meets_the_measured_floors() -> None:
-    f = _held_out_figures()
-    bad = [f"{k} = {f[k]} < {v}" for k, v in FLOORS_MIN.items() if f[k] is None or f[k] < v]
-    bad += [f"{k} = {f[k]} > {v}" for k, v in FLOORS_MAX.items() if f[k] is None or f[k] > v]
+@pytest.mark.parametrize(("name", "floors_min", "floors_max"), [
+    ("hard", FLOORS_MIN, FLOORS_MAX),
+    ("hard-fresh3", FRESH3_MIN, FRESH3_MAX),
+])
+def test_held_out_half_meets_the_measured_floors(name: str, floors_min: dict[str, float],
+                                                 floors_max: dict[str, float]) -> None:
+    f = _held_out_figures(name)
+    bad = [f"{k} = {f[k]} < {v}" for k, v in floors_min.items() if f[k] is None or f[k] < v]
+    bad += [f"{k} = {f[k]} > {v}" for k, v in floors_max.items() if f[k] is None or f[k] > v]
     assert not bad, "; ".join(bad)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from pathlib import Path
 
@@ -159,6 +160,9 @@ def test_third_check_set_is_hard_with_the_other_hand() -> None:
     assert len(fresh3) == 50 and {c.hand for c in fresh3} == {"anatomic"}
     assert {placement(c) for c in fresh3} <= {placement(c) for c in hard}
     assert min(c.seed for c in fresh3) >= 701
+    # its control: the same cases with the capsule hand
+    control = load_suite("hard-fresh3-capsule").cases
+    assert [dataclasses.replace(c, hand="anatomic") for c in control] == list(fresh3)
 
 
 def test_cli_sim_hand(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
