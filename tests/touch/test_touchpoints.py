@@ -291,7 +291,9 @@ def test_the_shift_is_an_offset_tracking_does_not_use(bounds):
     win = bounds.tl_mm[y - 4:y + 5, x - 4:x + 5][bounds.valid[y - 4:y + 5, x - 4:x + 5]]
     tl = max(float(win.mean()) - bounds.tl_floor_mm, 0.0)  # Tl around the point, above its floor
     assert tl > 0
-    assert np.hypot(*on.offset_px[0]) == pytest.approx(0.4 * tl / bounds.mm_per_px, rel=1e-4)
+    per_mm = TouchPointConfig().tip_tl_shift  # the default, which detect() uses
+    assert per_mm > 0
+    assert np.hypot(*on.offset_px[0]) == pytest.approx(per_mm * tl / bounds.mm_per_px, rel=1e-4)
 
 
 def test_tl_around_is_the_mean_over_the_valid_pixels_of_the_square() -> None:
