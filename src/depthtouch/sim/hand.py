@@ -13,7 +13,8 @@ A second hand model, ``style="anatomic"`` (:class:`Anatomy`), is another hand fo
 three phalanges that taper toward the tip, a distal pad wider than it is thick (two lobes side
 by side), a joint at the last phalanx that can lay the pad flatter than the scene's pitch, a
 tip that presses 0-1.5 mm into the surface while it touches, and a palm and forearm drawn
-apart from the fingers. Its contact point is the middle of the pad's two lobes.
+apart from the fingers. Its contact point is the centre of the pressed patch (the middle of
+the pad's two lobes where it does not sink).
 """
 
 from __future__ import annotations
