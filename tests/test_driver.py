@@ -116,3 +116,26 @@ def test_ctrl_c_ends_the_touches_then_is_raised() -> None:
     with pytest.raises(KeyboardInterrupt):
         drive(Interrupted(frames(5)), OneTouch(), [sink])
     assert sink.states() == ["down", "move", "move", "up"]
+
+
+def test_stop_wait_takes_no_lock_and_a_signal_ends_it() -> None:
+    """The paced loop's wait (stopping.wait) never takes the event's lock: Event.wait holds it
+    for a moment, and a stop signal landing then blocked its own handler's set() for ever. It
+    returns True as soon as a signal handler sets the event, False after its time otherwise."""
+    import signal
+    import time
+
+    from depthtouch import stopping
+
+    ev = threading.Event()
+    with ev._cond:  # held by this thread, as inside Event.wait: a lock-taking wait would hang
+        assert stopping.wait(ev, 0.03) is False
+    old = signal.signal(signal.SIGALRM, lambda *_: ev.set())
+    try:
+        signal.setitimer(signal.ITIMER_REAL, 0.05)
+        t0 = time.monotonic()
+        assert stopping.wait(ev, 5.0) is True
+        assert time.monotonic() - t0 < 1.0
+    finally:
+        signal.setitimer(signal.ITIMER_REAL, 0)
+        signal.signal(signal.SIGALRM, old)

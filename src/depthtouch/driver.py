@@ -16,6 +16,7 @@ ends only the touches that camera alone was seeing.
 from __future__ import annotations
 
 import contextlib
+import functools
 import logging
 import threading
 import time
@@ -138,7 +139,9 @@ def drive(
     """
     stats = stats if stats is not None else DriveStats()
     stop = stop or threading.Event()
-    pacer = Pacer(pace, wait=stop.wait) if isinstance(pace, (int, float)) else pace
+    # (not stop.wait: the loop runs in the main thread, where a signal handler sets ``stop``)
+    pacer = (Pacer(pace, wait=functools.partial(stopping.wait, stop))
+             if isinstance(pace, (int, float)) else pace)
     warned: set[str] = set()
     touched: set[int] = set()
     last_flush = clock()

@@ -13,6 +13,7 @@ from __future__ import annotations
 import contextlib
 import signal
 import threading
+import time
 from collections.abc import Callable, Iterator
 from typing import Any
 
@@ -26,6 +27,22 @@ def request() -> bool:
     for callback in list(_listeners):
         callback()
     return bool(_listeners)
+
+
+def wait(event: threading.Event, seconds: float, slice_s: float = 0.01) -> bool:
+    """``event.wait(seconds)`` for the main thread, when a stop signal's handler sets ``event``
+    (a :func:`listen` callback): True once it is set. It polls ``is_set`` in ``slice_s`` sleeps
+    and never takes the event's lock. ``Event.wait`` holds that lock for a moment on the way in
+    and out; a signal landing then ran the handler in the same thread, whose ``set`` waited for
+    the lock its own thread held: the command hung (a replay paced in real time, about 1 run in
+    40 of the signal tests)."""
+    end = time.monotonic() + seconds
+    while not event.is_set():
+        left = end - time.monotonic()
+        if left <= 0.0:
+            return False
+        time.sleep(min(left, slice_s))
+    return True
 
 
 def requested() -> bool:
