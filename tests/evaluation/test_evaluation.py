@@ -108,6 +108,22 @@ def test_beyond_gate_is_a_miss_and_a_false_touch() -> None:
     assert math.isnan(m.error_median_mm)
 
 
+def test_a_touch_down_while_its_finger_still_hovers_is_counted_as_early() -> None:
+    """A track down from frame 1 over a finger descending 10 mm a frame from 40 mm (at frame
+    0), matched once the contact begins at frame 5: found, not false, early from 30 mm. One that goes down on
+    the contact's first frame is not early; neither is one near no hover before its match."""
+    hov = {f: [hover(1, 300, 200, 40.0 - 10.0 * f)] for f in range(5)}
+    t = truth_from_dict(doc(30, {f: [contact(1, 300, 200)] for f in range(5, 20)}, hov))
+    m = summarize([evaluate(t, track(9, range(1, 20), (300, 200)))])
+    assert m.contact_recall == 1.0 and m.false_touches == 0
+    assert m.early_hover_heights_mm == (30.0,)
+    assert m.early_from_hover_at_least(25.0) == 1 and m.early_from_hover_at_least(31.0) == 0
+    on_time = summarize([evaluate(t, track(9, range(5, 20), (300, 200)))])
+    assert on_time.early_hover_heights_mm == ()
+    no_hover = summarize([evaluate(tap_truth(), track(9, range(2, 20), (300, 200)))])
+    assert no_hover.early_hover_heights_mm == () and no_hover.contact_recall == 1.0
+
+
 def test_tilted_plane_error_is_on_the_tangent_plane() -> None:
     # plane through P tilted 60 deg about the x axis: a 1 px step in y covers 2 mm / cos(60) = 4
     # mm on the plane (to first order; exact value from the ray-plane intersection)

@@ -9,7 +9,9 @@ document) and a list of :class:`~depthtouch.types.TouchEvent`:
   the contact point P (normal n): Q = r (n.P) / (n.r); the error is |Q - P|; pairs farther than
   the gate (default 20 mm) are never matched;
 - a reported track (id) matched in no frame is a false touch; it is attributed to a hovering
-  finger when it comes within the gate of one (by the hover's height), else to "other";
+  finger when it comes within the gate of one (by the hover's height), else to "other"; a
+  matched track that was down before its first match near a hovering finger went down early,
+  in the air (counted apart, by the highest such hover);
 - contact episodes (a truth id over consecutive frames) give recall, id switches, touch-down and
   lift latency, the drag-path angle error (over 3-frame steps) and the jitter of a still finger.
 
@@ -133,7 +135,10 @@ class EvalResult:
     (:data:`SURFACE_CHANGES` events in the truth). ep_merged: per episode, it was first
     reported under an id that an earlier episode, already ended, was reported under: the
     sensor kept the touch down between them (a finger hovering low between two taps), so an app
-    saw one touch where there were two.
+    saw one touch where there were two. early_hover_height_mm: per matched track that was
+    reported down before its first match while near a hovering fingertip, the highest hover
+    height on those frames: it went down in the air and then slid into the contact, which the
+    false-touch count does not see (an app saw the touch start above the surface).
     """
 
     label: str
@@ -163,6 +168,7 @@ class EvalResult:
     false_last: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
     change_frames: tuple[int, ...] = ()
     ep_merged: np.ndarray = field(default_factory=lambda: np.zeros(0, bool))
+    early_hover_height_mm: np.ndarray = field(default_factory=lambda: np.zeros(0))
 
 
 def _episodes(frame: np.ndarray, ids: np.ndarray) -> np.ndarray:
@@ -266,6 +272,15 @@ def evaluate(
         if np.any(np.isfinite(hs)):
             false_h[k] = np.nanmin(hs)
 
+    # matched tracks that were down before their first match, near a hovering fingertip
+    early_h = []
+    for rid in true_ids.tolist():
+        sel = a_id == rid
+        first = a_frame[sel & a_matched].min()
+        hs = a_hover_h[sel & (a_frame < first)]
+        if np.any(np.isfinite(hs)):
+            early_h.append(float(np.nanmax(hs)))
+
     # contact episodes
     ep = _episodes(c_f, truth.contact_id) if m else np.zeros(0, np.int64)
     n_ep = int(ep.max()) + 1 if m else 0
@@ -357,6 +372,7 @@ def evaluate(
         still_sq_sum_mm2=sq_sum, still_count=sq_count, ep_merged=merged,
         timing_ms=np.asarray(timing_ms if timing_ms is not None else [], dtype=np.float64),
         false_last=false_last,
+        early_hover_height_mm=np.asarray(early_h, np.float64),
         change_frames=_change_frames(truth),
     )
 
@@ -389,6 +405,8 @@ class Metrics:
     false_touches: false tracks; false_per_min: per minute of recording.
     false_by_hover: false tracks per band of hover height (:func:`hover_band`, mm) and "other".
     false_hover_heights_mm: the hover height of each false track that came near a hover.
+    early_hover_heights_mm: for each true track reported down before its contact while near a
+    hovering fingertip, the highest such hover (EvalResult.early_hover_height_mm).
     error_*_mm: surface error of matches. id_switches: total.
     down_latency_* / lift_latency_*: frames (0 = on the first contact frame / ``up`` on the
     first frame without contact). merged_contacts: contacts first reported under the id of an
@@ -410,6 +428,7 @@ class Metrics:
     false_per_min: float
     false_by_hover: dict[str, int]
     false_hover_heights_mm: tuple[float, ...]
+    early_hover_heights_mm: tuple[float, ...]
     error_median_mm: float
     error_p95_mm: float
     error_mean_mm: float
@@ -439,6 +458,11 @@ class Metrics:
     def false_from_hover_at_least(self, height_mm: float) -> int:
         """False touches attributed to fingers hovering at ``height_mm`` or higher."""
         return sum(h >= height_mm for h in self.false_hover_heights_mm)
+
+    def early_from_hover_at_least(self, height_mm: float) -> int:
+        """True touches reported down while their finger still hovered ``height_mm`` or
+        higher (before the contact began)."""
+        return sum(h >= height_mm for h in self.early_hover_heights_mm)
 
 
 def _q(a: np.ndarray, q: float) -> float:
@@ -496,6 +520,7 @@ def summarize(results: Sequence[EvalResult]) -> Metrics:
         false_per_min=float(fh.size / (duration / 60.0)) if duration > 0 else math.nan,
         false_by_hover=by_hover,
         false_hover_heights_mm=tuple(float(h) for h in fh if math.isfinite(h)),
+        early_hover_heights_mm=tuple(float(h) for h in cat("early_hover_height_mm")),
         error_median_mm=_q(errs, 50),
         error_p95_mm=_q(errs, 95),
         error_mean_mm=float(errs.mean()) if errs.size else math.nan,
