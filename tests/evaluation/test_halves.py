@@ -199,3 +199,21 @@ def test_second_check_set_moves_every_mount_but_the_far_stereo_ones() -> None:
     assert {c.group for c in fresh2} == {c.group for c in load_suite("hard").cases}
     tune, held = select_half(fresh2, "tune"), select_half(fresh2, "held-out")
     assert {c.group for c in tune} == {c.group for c in held}
+
+
+def test_hover_check_set_is_the_approach_scene_at_tof_range_with_both_hands() -> None:
+    """hover-tof: hover-then-tap at ToF 2 m and 1.3 m, seeds no other suite uses, each seed with
+    both hand models, on both halves."""
+    known = [c for n in ("hard", "hard-fresh", "hard-extra", "hard-fresh2", "hard-fresh3")
+             for c in load_suite(n).cases]
+    cases = load_suite("hover-tof").cases
+    assert len(cases) == 40
+    assert {c.scene for c in cases} == {"approach"} and {c.camera for c in cases} == {
+        "kinect-v2-hard"}
+    assert {c.distance_m for c in cases} == {1.3, 2.0}
+    assert not {c.seed for c in cases} & {c.seed for c in known}
+    for hand in ("capsule", "anatomic"):
+        mine = [c for c in cases if c.hand == hand]
+        assert len(mine) == 20
+        assert {c.group for c in select_half(mine, "tune")} == {
+            c.group for c in select_half(mine, "held-out")}
