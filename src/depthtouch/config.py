@@ -234,6 +234,18 @@ class TrackingConfig:
         unchanged; ranges [0, 10000] and [0, 1e5], 0 turns either off).
     weak_evidence: what one frame of a region outside that range counts (default 0.4, range
         (0, 1]; 1 turns the size test off): with down_frames 2 it needs 5 frames.
+    weak_quiet_evidence: the same where the depth is quiet: Tl around the point within 1 mm
+        of its floor (TouchPoints.tl_above_floor_mm). There Tl cuts little of a touching tip,
+        whose region is whole, and a small region is most often mixed pixels under the rim of
+        a finger hovering above it (ToF at 1.3-2 m: 4-15 px regions under fingers 25-60 mm up,
+        which went down after five frames); where Tl is high, a touching tip's region is a
+        sliver and weak_evidence applies. Default 0.25 (session 26: 8 frames), chosen on the
+        tune halves (0.2 lost a fast drag at stereo 0.6 m, where Tl is at its floor too);
+        held-out, 0.4 -> 0.25: false touches hard 11 -> 8, hard-fresh2 8 -> 4, hard-fresh3
+        10 -> 8 (from hovers >= 25 mm 2 -> 0), hover-tof 11 -> 2 (4 -> 0); touches down while
+        the finger was still >= 25 mm up 21 -> 6 over the four; recall unchanged but one
+        contact on hover-tof (0.986 -> 0.972); still-finger jitter on hard 0.82 -> 0.93 mm
+        (docs/accuracy.md, session 26). Range (0, 1]; equal to weak_evidence turns it off.
     attach_max_mm: a fingertip hangs on its finger, so its region touches the hand along about a
         finger's width; a region attached along more than this (the edge of a forearm or a palm
         lying in the band) gives no evidence (default 30 mm, chosen on the hard suite's tune
@@ -344,6 +356,7 @@ class TrackingConfig:
     tip_area_min_px: float = 16.0
     tip_area_max_px: float = 80.0
     weak_evidence: float = 0.4
+    weak_quiet_evidence: float = 0.25
     attach_max_mm: float = 30.0
     attach_low_mm: float = 3.0
     attach_low_evidence: float = 0.25
@@ -383,6 +396,7 @@ class TrackingConfig:
         _range("tracking.tip_area_min_px", self.tip_area_min_px, 0.0, 10000.0)
         _range("tracking.tip_area_max_px", self.tip_area_max_px, 0.0, 1e5)
         _range("tracking.weak_evidence", self.weak_evidence, 0.0, 1.0, lo_open=True)
+        _range("tracking.weak_quiet_evidence", self.weak_quiet_evidence, 0.0, 1.0, lo_open=True)
         _range("tracking.attach_max_mm", self.attach_max_mm, 0.0, 10000.0)
         _range("tracking.attach_low_mm", self.attach_low_mm, 0.0, 100.0)
         _range("tracking.attach_low_evidence", self.attach_low_evidence, 0.0, 1.0)

@@ -105,6 +105,9 @@ class TouchPoints:
     core_height_mm: (N,) the height of the finger's core at the point: the 75th percentile of
         the heights of the 3x3 pixels around it (NaN when none is known; the lift test in
         tracking compares it with the same contact's earlier frames); None means unknown.
+    tl_above_floor_mm: (N,) how far Tl around the point (the mean over the 9x9 pixels around
+        it) lies above its floor: 0 where the depth is quiet enough that Tl is the floor; None
+        means unknown.
     """
 
     xy_px: np.ndarray
@@ -117,6 +120,7 @@ class TouchPoints:
     back_spread_mm: np.ndarray | None = None
     offset_px: np.ndarray | None = None
     core_height_mm: np.ndarray | None = None
+    tl_above_floor_mm: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         n = self.xy_px.shape[0] if self.xy_px.ndim == 2 else -1
@@ -136,6 +140,8 @@ class TouchPoints:
             _check_shape("TouchPoints.offset_px", self.offset_px, (n, 2))
         if self.core_height_mm is not None:
             _check_shape("TouchPoints.core_height_mm", self.core_height_mm, (n,))
+        if self.tl_above_floor_mm is not None:
+            _check_shape("TouchPoints.tl_above_floor_mm", self.tl_above_floor_mm, (n,))
 
     @classmethod
     def empty(cls) -> TouchPoints:
@@ -150,9 +156,11 @@ class TouchPoints:
         att_h = None if self.attach_height_mm is None else self.attach_height_mm[index]
         back = None if self.back_spread_mm is None else self.back_spread_mm[index]
         off = None if self.offset_px is None else self.offset_px[index]
+        core = None if self.core_height_mm is None else self.core_height_mm[index]
+        tl = None if self.tl_above_floor_mm is None else self.tl_above_floor_mm[index]
         return TouchPoints(
             self.xy_px[index], self.height_mm[index], self.area_px[index], self.hand_xy_px[index],
-            border, attach, att_h, back, off,
+            border, attach, att_h, back, off, core, tl,
         )
 
 

@@ -30,12 +30,15 @@ pytest.importorskip("depthtouch.sim")
 # jitter 0.884 mm, the rest unchanged; session 18, a stereo camera's band without depth counts
 # as outside the view: recall 0.970, 1.02 false touches per minute, jitter 0.846 mm, p95
 # 6.94 mm, the rest unchanged; session 25, tip_tl_shift 0.6: error 1.42 / 5.01 mm, jitter
-# 0.817 mm, angle 3.95 deg, the rest unchanged); "max" floors are upper bounds. Some are short of issue 13's
+# 0.817 mm, angle 3.95 deg, the rest unchanged; session 26, tracking.weak_quiet_evidence 0.25:
+# 0.82 false touches per minute, no touch down while its finger was >= 25 mm up (4 before),
+# jitter 0.934 mm, the rest unchanged); "max" floors are upper bounds. Some are short of issue 13's
 # targets: they guard against regressions, see docs/accuracy.md.
 FLOORS_MIN: dict[str, float] = {"recall_working": 0.965, "recall_drift": 0.93}
 FLOORS_MAX: dict[str, float] = {
     "false_per_min": 1.5,
     "false_from_hover_25mm": 0,
+    "early_from_hover_25mm": 1,
     "id_switches": 1,
     "error_median_mm": 1.7,
     "error_p95_mm": 7.3,
@@ -51,19 +54,39 @@ FLOORS_MAX: dict[str, float] = {
 # 2.04 false touches per minute, 2 of them from hovers >= 25 mm, 2 later than 2 s after a
 # surface change, 1 id switch, error median 3.63 / p95 8.86 mm, jitter 1.21 mm, angle error
 # 8.40 deg, recall under drift 0.875, touch-down latency median 0; then tip_tl_shift 0.6
-# (session 25): error 3.35 / 7.96 mm, jitter 1.23 mm, angle 8.51 deg, the rest unchanged.
+# (session 25): error 3.35 / 7.96 mm, jitter 1.23 mm, angle 8.51 deg, the rest unchanged;
+# then tracking.weak_quiet_evidence 0.25 (session 26): 1.63 false touches per minute, none from
+# hovers >= 25 mm, no touch down while its finger was >= 25 mm up (2 before), 0 id switches,
+# error 3.34 / 8.05 mm, the rest unchanged.
 # Worse than hard's on most measures: a thin fingertip loses its front to Tl
 # (docs/accuracy.md, session 25). Regression guards, not targets.
 FRESH3_MIN: dict[str, float] = {"recall_working": 0.94, "recall_drift": 0.87}
 FRESH3_MAX: dict[str, float] = {
-    "false_per_min": 2.5,
-    "false_from_hover_25mm": 2,
+    "false_per_min": 2.2,
+    "false_from_hover_25mm": 0,
+    "early_from_hover_25mm": 1,
     "id_switches": 2,
     "error_median_mm": 3.6,
     "error_p95_mm": 8.4,
     "jitter_rms_mm": 1.35,
     "angle_error_deg": 9.0,
     "false_late_after_change": 2,
+    "down_latency_median_frames": 1.0,
+}
+
+
+# hover-tof (session 26): hover-then-tap at ToF 2 m and 1.3 m with both hands, held-out half,
+# with tracking.weak_quiet_evidence 0.25: recall 0.972, 0.52 false touches per minute (2.85
+# before it), none from hovers >= 25 mm (4 before), 6 touches down while the finger was still
+# >= 25 mm up (12 before), error 2.51 / 6.08 mm, 0 id switches, touch-down latency median 0.
+HOVER_MIN: dict[str, float] = {"recall_working": 0.95}
+HOVER_MAX: dict[str, float] = {
+    "false_per_min": 1.0,
+    "false_from_hover_25mm": 0,
+    "early_from_hover_25mm": 8,
+    "id_switches": 1,
+    "error_median_mm": 2.8,
+    "error_p95_mm": 6.6,
     "down_latency_median_frames": 1.0,
 }
 
@@ -81,6 +104,7 @@ def _held_out_figures(name: str = "hard") -> dict[str, Any]:
 @pytest.mark.parametrize(("name", "floors_min", "floors_max"), [
     ("hard", FLOORS_MIN, FLOORS_MAX),
     ("hard-fresh3", FRESH3_MIN, FRESH3_MAX),
+    ("hover-tof", HOVER_MIN, HOVER_MAX),
 ])
 def test_held_out_half_meets_the_measured_floors(name: str, floors_min: dict[str, float],
                                                  floors_max: dict[str, float]) -> None:

@@ -261,10 +261,10 @@ def test_a_higher_tl_moves_the_reported_contact_forward_along_the_finger(bounds)
     the floor, without a hand direction, or with the shift off, it stays."""
     from dataclasses import replace
 
-    from depthtouch.touch.points import tl_offset_px
+    from depthtouch.touch.points import tl_above_floor_mm, tl_offset_px
 
     def tl_shift_px(xy, hand, b, per_mm):  # the points as reported: found + offset
-        return xy + tl_offset_px(xy, hand, b, per_mm)
+        return xy + tl_offset_px(xy, hand, tl_above_floor_mm(xy, b), b.mm_per_px, per_mm)
 
     high = replace(bounds, tl_mm=np.full_like(bounds.tl_mm, 9.0), tl_around_mm=None,
                    tl_floor_mm=4.0)
@@ -278,6 +278,30 @@ def test_a_higher_tl_moves_the_reported_contact_forward_along_the_finger(bounds)
     np.testing.assert_array_equal(tl_shift_px(xy, hand, floor, 0.4), xy)
     np.testing.assert_array_equal(tl_shift_px(xy, np.full_like(hand, np.nan), high, 0.4), xy)
     np.testing.assert_array_equal(tl_shift_px(xy, hand, high, 0.0), xy)
+
+
+def test_tl_above_its_floor_is_read_around_each_point_and_kept_with_the_points(bounds):
+    """tl_above_floor_mm reads Tl's neighbourhood mean at the nearest pixel (clamped to the
+    image), less the floor, never below 0; find_touch_points gives it per point, and a subset
+    of the points keeps it (and the core heights)."""
+    from dataclasses import replace
+
+    from depthtouch.touch.points import tl_above_floor_mm
+
+    tl = np.full_like(bounds.tl_mm, 4.0)
+    tl[200:, :] = 9.0
+    b = replace(bounds, tl_mm=tl, tl_around_mm=None, tl_floor_mm=4.0)
+    got = tl_above_floor_mm(np.array([[10.0, 10.0], [10.0, 250.4], [-5.0, 1e4]]), b)
+    np.testing.assert_allclose(got, [0.0, 5.0, 5.0])
+    low = replace(b, tl_mm=np.full_like(tl, 3.0))
+    np.testing.assert_allclose(tl_above_floor_mm(np.array([[10.0, 10.0]]), low), [0.0])
+    f = Finger(320.3, 240.6, 30)
+    p = detect(bounds, [f])
+    assert p.tl_above_floor_mm is not None
+    np.testing.assert_allclose(p.tl_above_floor_mm, tl_above_floor_mm(p.xy_px, bounds))
+    sub = p[np.array([0])]
+    np.testing.assert_array_equal(sub.tl_above_floor_mm, p.tl_above_floor_mm[:1])
+    np.testing.assert_array_equal(sub.core_height_mm, p.core_height_mm[:1])
 
 
 def test_the_shift_is_an_offset_tracking_does_not_use(bounds):

@@ -296,6 +296,37 @@ def test_down_needs_evidence_by_size(area_px: float, down_at: int) -> None:
     assert first == down_at
 
 
+def _tip_tl(area_px: float, above_mm: float) -> TouchPoints:
+    """One point of that area where Tl around it lies ``above_mm`` over its floor."""
+    p = _tip(area_px)
+    return TouchPoints(p.xy_px, p.height_mm, p.area_px, p.hand_xy_px,
+                       tl_above_floor_mm=np.array([above_mm]))
+
+
+@pytest.mark.parametrize(("area_px", "above_mm", "down_at"), [
+    (40, 0.0, 10),    # a speck where the depth is quiet: 0.2 a frame, 10 frames make 2
+    (40, 1.0, 10),    # within 1 mm of the floor is quiet
+    (40, 1.5, 5),     # where Tl is raised, a touching tip's region is a sliver: 0.4 a frame
+    (300, 0.0, 2),    # a fingertip's region counts whole either way
+    (2000, 0.0, 10),  # so is a region too large for a tip
+])
+def test_a_small_region_counts_less_where_the_depth_is_quiet(area_px: float, above_mm: float,
+                                                             down_at: int) -> None:
+    tr = Tracker(TrackingConfig(down_frames=2, weak_quiet_evidence=0.2), scale_mm_per_px=1.0)
+    states = [[s for _, s in f] for f in run(tr, [_tip_tl(area_px, above_mm)] * 12)]
+    assert next(i for i, f in enumerate(states) if f == ["down"]) + 1 == down_at
+    # equal to weak_evidence, or without the Tl of the points, it is the size test as before
+    same = Tracker(TrackingConfig(down_frames=2, weak_quiet_evidence=0.4), scale_mm_per_px=1.0)
+    states = [[s for _, s in f] for f in run(same, [_tip_tl(area_px, above_mm)] * 12)]
+    assert next(i for i, f in enumerate(states) if f == ["down"]) + 1 == (2 if area_px == 300
+                                                                          else 5)
+    unknown = Tracker(TrackingConfig(down_frames=2, weak_quiet_evidence=0.2),
+                      scale_mm_per_px=1.0)
+    states = [[s for _, s in f] for f in run(unknown, [_tip(area_px)] * 12)]
+    assert next(i for i, f in enumerate(states) if f == ["down"]) + 1 == (2 if area_px == 300
+                                                                          else 5)
+
+
 @pytest.mark.parametrize(("scale", "area_px", "down_at"), [
     (5.4, 6, 5),     # a ToF camera at 2 m: a 6-px speck (175 mm^2) is weak, in pixels
     (5.4, 15, 5),

@@ -79,11 +79,12 @@ def find_touch_points(
     xy, offset = out.xy_px, None
     if config.method == "extremity":
         xy = foot_px(xy, b, config.tip_axis_mm)
-        if config.tip_tl_shift > 0:
-            offset = tl_offset_px(xy, out.hand_xy_px, b, config.tip_tl_shift)
+    above = tl_above_floor_mm(xy, b)
+    if config.method == "extremity" and config.tip_tl_shift > 0:
+        offset = tl_offset_px(xy, out.hand_xy_px, above, b.mm_per_px, config.tip_tl_shift)
     return TouchPoints(xy, out.height_mm, out.area_px, out.hand_xy_px, out.hand_at_border,
                        out.attach_px, out.attach_height_mm, out.back_spread_mm, offset,
-                       core_heights_mm(depth, xy, b))
+                       core_heights_mm(depth, xy, b), above)
 
 
 def core_heights_mm(depth: np.ndarray, xy_px: np.ndarray, bounds: BandBounds) -> np.ndarray:
@@ -103,38 +104,47 @@ def core_heights_mm(depth: np.ndarray, xy_px: np.ndarray, bounds: BandBounds) ->
     return out
 
 
-def tl_offset_px(xy_px: np.ndarray, hand_xy_px: np.ndarray, bounds: BandBounds,
-                 per_mm: float) -> np.ndarray:
+def tl_above_floor_mm(xy_px: np.ndarray, bounds: BandBounds) -> np.ndarray:
+    """How far Tl around each point lies above its floor (mm, >= 0; pure, float64 (N,)).
+
+    Tl is averaged over the point's neighbourhood (``BandBounds.tl_around_mm``, 9x9 pixels): a
+    pixel's own noise estimate is itself noisy, and a point moving by a pixel must not change
+    what is derived from it (the report's forward shift, the evidence of a small region).
+    """
+    xy = np.asarray(xy_px, np.float64).reshape(-1, 2)
+    tl_map = bounds.tl_around_mm if bounds.tl_around_mm is not None else bounds.tl_mm
+    h1, w1 = tl_map.shape[0] - 1, tl_map.shape[1] - 1
+    cols = np.clip(np.rint(np.nan_to_num(xy[:, 0])), 0, w1).astype(np.intp)
+    rows = np.clip(np.rint(np.nan_to_num(xy[:, 1])), 0, h1).astype(np.intp)
+    return np.maximum(tl_map[rows, cols].astype(np.float64) - bounds.tl_floor_mm, 0.0)
+
+
+def tl_offset_px(xy_px: np.ndarray, hand_xy_px: np.ndarray, above_mm: np.ndarray,
+                 mm_per_px: float, per_mm: float) -> np.ndarray:
     """How far (px) to move each point forward along its finger, away from its hand: ``per_mm``
-    times the amount by which Tl at its pixel exceeds its floor, in mm on the surface (pure,
-    float64 (N, 2)).
+    times ``above_mm``, the amount by which Tl around it exceeds its floor
+    (:func:`tl_above_floor_mm`), in mm on the surface (pure, float64 (N, 2)).
 
     Where the depth is noisy, Tl rises above its floor (to k σ) and more of the tip's front
     stays out of the band and out of the grown tip cap: the extremity is found behind the
     contact, by 1.4-1.5 mm at the floor and 0.2-0.4 mm more per mm of Tl above it on stereo and
     structured light, and not at all on ToF at the floor (hard suite, tune half;
-    docs/accuracy.md section 7, session 11). Tl is averaged over the point's neighbourhood
-    (``BandBounds.tl_around_mm``).
+    docs/accuracy.md section 7, session 11).
     At the floor the offset is 0, and so it is for points without a hand direction.
     """
     xy = np.asarray(xy_px, np.float64).reshape(-1, 2)
     out = np.zeros_like(xy)
     if per_mm == 0.0:
         return out
-    # Tl of the neighbourhood (BandBounds.tl_around_mm): a pixel's own noise estimate is itself
-    # noisy, and a point moving by a pixel must not move its shift with it
-    tl_map = bounds.tl_around_mm if bounds.tl_around_mm is not None else bounds.tl_mm
-    h1, w1 = tl_map.shape[0] - 1, tl_map.shape[1] - 1
-    k = per_mm / bounds.mm_per_px
-    floor = bounds.tl_floor_mm
+    k = per_mm / mm_per_px
     # a handful of points per frame: plain floats cost less than array calls here
-    for i, ((x, y), (hx, hy)) in enumerate(zip(xy.tolist(),
-                                              np.asarray(hand_xy_px).reshape(-1, 2).tolist())):
+    for i, ((x, y), (hx, hy), above) in enumerate(zip(
+            xy.tolist(), np.asarray(hand_xy_px).reshape(-1, 2).tolist(),
+            np.asarray(above_mm, np.float64).reshape(-1).tolist())):
         ux, uy = x - hx, y - hy
         n = math.hypot(ux, uy)
         if not n > 1e-6:  # also NaN: no hand direction
             continue
-        above = float(tl_map[min(max(round(y), 0), h1), min(max(round(x), 0), w1)]) - floor
         if above > 0.0:
             step = k * above / n
             out[i, 0] = ux * step

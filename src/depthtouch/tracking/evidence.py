@@ -16,6 +16,8 @@ from ..types import TouchPoints
 XY = tuple[float, float]
 # a point this far behind a fingertip on its axis is still on that finger (a finger's length)
 _BEHIND_MAX_MM = 150.0
+# Tl within this much of its floor: quiet depth (TrackingConfig.weak_quiet_evidence)
+_QUIET_MM = 1.0
 
 
 def behind(xy: list[XY], hand: list[list[float]], tips: list[int], scale: float,
@@ -71,8 +73,9 @@ def evidence_weights(points: TouchPoints, xy: list[XY], area_px: list[int], ok_n
     A region of a fingertip's size (at least ``tip_area_min_mm2`` and ``tip_area_min_px``,
     at most ``tip_area_max_mm2`` or ``tip_area_max_px``) counts a whole frame; a smaller
     one (a speck of noise at a finger's edge, a tip only grazing the band) or a larger one
-    (a hovering finger or a forearm's edge lying in the band) counts ``weak_evidence``, so it
-    must persist for more frames before it is believed. A region attached to its hand along
+    (a hovering finger or a forearm's edge lying in the band) counts ``weak_evidence``
+    (``weak_quiet_evidence`` where Tl around it is within 1 mm of its floor), so it must
+    persist for more frames before it is believed. A region attached to its hand along
     more than ``attach_max_mm`` (the broad edge of a forearm or a palm lying in the band, not
     a fingertip at the end of a finger) counts nothing (``attach_low_evidence`` if it rests
     within ``attach_low_mm`` of the surface: a finger of a hand held low), and so does one
@@ -97,7 +100,13 @@ def evidence_weights(points: TouchPoints, xy: list[XY], area_px: list[int], ok_n
         px_mm2 = scale * scale
         lo = max(config.tip_area_min_mm2 / px_mm2, config.tip_area_min_px)
         hi = max(config.tip_area_max_mm2 / px_mm2, config.tip_area_max_px)
-        w = [1.0 if lo <= a <= hi else weak for a in area_px]
+        quiet = points.tl_above_floor_mm
+        if quiet is None or config.weak_quiet_evidence == weak:
+            w = [1.0 if lo <= a <= hi else weak for a in area_px]
+        else:
+            wq = config.weak_quiet_evidence
+            w = [1.0 if lo <= a <= hi else (wq if q <= _QUIET_MM else weak)
+                 for a, q in zip(area_px, quiet.tolist(), strict=True)]
     if any(steep):
         w = [steep_w if s else v for v, s in zip(w, steep, strict=True)]
     # the attachment counts the hand pixels within 2 px of the region: an attachment w mm
