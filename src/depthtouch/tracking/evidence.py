@@ -100,13 +100,12 @@ def evidence_weights(points: TouchPoints, xy: list[XY], area_px: list[int], ok_n
         px_mm2 = scale * scale
         lo = max(config.tip_area_min_mm2 / px_mm2, config.tip_area_min_px)
         hi = max(config.tip_area_max_mm2 / px_mm2, config.tip_area_max_px)
-        quiet = points.tl_above_floor_mm
-        if quiet is None or config.weak_quiet_evidence == weak:
-            w = [1.0 if lo <= a <= hi else weak for a in area_px]
-        else:
-            wq = config.weak_quiet_evidence
-            w = [1.0 if lo <= a <= hi else (wq if q <= _QUIET_MM else weak)
-                 for a, q in zip(area_px, quiet.tolist(), strict=True)]
+        # Tl above its floor around each point; unknown counts as not quiet
+        above = ([math.inf] * n if points.tl_above_floor_mm is None
+                 else points.tl_above_floor_mm.tolist())
+        wq = config.weak_quiet_evidence
+        w = [1.0 if lo <= a <= hi else (wq if q <= _QUIET_MM else weak)
+             for a, q in zip(area_px, above, strict=True)]
     if any(steep):
         w = [steep_w if s else v for v, s in zip(w, steep, strict=True)]
     # the attachment counts the hand pixels within 2 px of the region: an attachment w mm
