@@ -114,9 +114,14 @@ def tl_above_floor_mm(xy_px: np.ndarray, bounds: BandBounds) -> np.ndarray:
     xy = np.asarray(xy_px, np.float64).reshape(-1, 2)
     tl_map = bounds.tl_around_mm if bounds.tl_around_mm is not None else bounds.tl_mm
     h1, w1 = tl_map.shape[0] - 1, tl_map.shape[1] - 1
-    cols = np.clip(np.rint(np.nan_to_num(xy[:, 0])), 0, w1).astype(np.intp)
-    rows = np.clip(np.rint(np.nan_to_num(xy[:, 1])), 0, h1).astype(np.intp)
-    return np.maximum(tl_map[rows, cols].astype(np.float64) - bounds.tl_floor_mm, 0.0)
+    floor = bounds.tl_floor_mm
+    out = np.zeros(xy.shape[0])
+    # a handful of points per frame: plain floats cost less than array calls here
+    for i, (x, y) in enumerate(xy.tolist()):
+        if x == x and y == y:  # NaN: no pixel, nothing above the floor
+            tl = float(tl_map[min(max(round(y), 0), h1), min(max(round(x), 0), w1)])
+            out[i] = max(tl - floor, 0.0)
+    return out
 
 
 def tl_offset_px(xy_px: np.ndarray, hand_xy_px: np.ndarray, above_mm: np.ndarray,
