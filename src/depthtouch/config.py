@@ -346,6 +346,18 @@ class TrackingConfig:
         hard-fresh2: id switches 8 -> 6, error p95 at the new placements 8.14 -> 7.82 mm, no
         contact or false touch changed; the held-out sets were unchanged (ranges [0, 1] and
         [0, 1000] mm; a ratio of 0 turns it off).
+    reference_fps: the frame rate the frame counts above are meant at (default 30 Hz, the rate
+        every suite was recorded and tuned at): down_frames, up_frames, merge_frames,
+        pending_gap_frames, pending_low_gap_frames and the decays per frame. At another rate,
+        measured from the frames' timestamps (the median of the last 15 intervals), each keeps
+        its duration: a contact's first frame counts as one frame and each further frame as
+        its length, so that evidence is how long it has been seen (down_frames 2: seen 33 ms
+        apart, in 3 frames at 60 fps, 2 at 15 fps), and a contact may be missing for 100 ms
+        (up_frames 3: 6 frames at 60 fps). Within 10 % of it (timestamps in whole ms, a
+        dropped frame) the counts are frames. Why: at 60 fps the hard suite's tune half
+        made 30 false touches instead of 13, specks that last as many frames as before but
+        half as long (docs/accuracy.md, session 27). 0 counts frames at any rate (range
+        [0, 1000] Hz).
     """
 
     gate_mm: float = 40.0
@@ -385,6 +397,7 @@ class TrackingConfig:
     lift_core_mm: float = 15.0
     yield_ratio: float = 0.7
     yield_min_mm: float = 10.0
+    reference_fps: float = 30.0
 
     def validate(self) -> None:
         _range("tracking.gate_mm", self.gate_mm, 0.0, 1000.0, lo_open=True)
@@ -424,6 +437,7 @@ class TrackingConfig:
         _range("tracking.steep_step_max_mm", self.steep_step_max_mm, self.steep_step_min_mm,
                10000.0)
         _range("tracking.lift_core_mm", self.lift_core_mm, 0.0, 200.0)
+        _range("tracking.reference_fps", self.reference_fps, 0.0, 1000.0)
         _range("tracking.yield_ratio", self.yield_ratio, 0.0, 1.0)
         _range("tracking.yield_min_mm", self.yield_min_mm, 0.0, 1000.0)
 

@@ -191,7 +191,7 @@ class Pipeline:
         t1 = time.perf_counter()
         points = find_touch_points(frame.depth, regions, b, self.config.touchpoints)
         t2 = time.perf_counter()
-        updates = self._tracker.update(points)
+        updates = self._tracker.update(points, frame.timestamp_s)
         t3 = time.perf_counter()
         events = self._events(frame, updates)
         t4 = time.perf_counter()

@@ -22,7 +22,8 @@ a touching tip), and a pending one gains no evidence then. A contact that is dow
 jump onto a point that an established pending contact lies much nearer to (``yield_ratio``):
 when its own tip drops out for a frame, the nearest point is often a hovering finger or hand
 beside it; it counts as missing instead, and nobody takes that point in that frame.
-Ids are never reused within a run.
+Ids are never reused within a run. The counts are in frames at ``reference_fps``: at another
+rate (from the frames' timestamps, :mod:`.framerate`) each keeps its duration.
 """
 
 from __future__ import annotations
@@ -37,6 +38,7 @@ from scipy.optimize import linear_sum_assignment
 from ..config import TouchPointConfig, TrackingConfig
 from ..types import TouchPoints, TouchState
 from .evidence import XY, evidence_weights, steep_tips
+from .framerate import FrameRate, frames_for
 from .lift import CoreHistory
 
 _BIG = 1e9
@@ -135,10 +137,19 @@ class Tracker:
     scale_mm_per_px: float | None = None
     next_id: int = 1
     tracks: list[Track] = field(default_factory=list)
+    # the frame counts' frames at this stream's rate (TrackingConfig.reference_fps)
+    _rate: FrameRate = field(init=False, repr=False)
+    _merge_n: int = field(init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        self._rate = FrameRate(self.config.reference_fps)
+        self._merge_n = self.config.merge_frames
 
     def reset(self) -> None:
-        """Forget all tracks; ids keep increasing (never reused within a run)."""
+        """Forget all tracks and the stream's frame rate; ids keep increasing (never reused
+        within a run)."""
         self.tracks = []
+        self._rate.reset()
 
     def use_scale(self, scale_mm_per_px: float | None) -> None:
         """Gate in mm with this many mm per px from now on (None: gate in pixels)."""
@@ -159,8 +170,11 @@ class Tracker:
         mm = self.config.merge_mm
         return mm if self.scale_mm_per_px is not None else mm / 2.0
 
-    def update(self, points: TouchPoints) -> list[TrackUpdate]:
-        """Advance one frame with this frame's touch points; returns the reported tracks."""
+    def update(self, points: TouchPoints, t_s: float | None = None) -> list[TrackUpdate]:
+        """Advance one frame with this frame's touch points (``t_s``: its timestamp, s; None
+        counts it as a frame at ``reference_fps``); returns the reported tracks."""
+        frame = self._rate.update(t_s)
+        self._merge_n = frames_for(self.config.merge_frames, frame)
         tracks = self.tracks
         n_t, n_p = len(tracks), len(points)
         if not n_t and not n_p:
@@ -214,10 +228,18 @@ class Tracker:
             step = (pos[k][0] - cx, pos[k][1] - cy)
             for i in members:
                 shift[i] = (k, step)
-        down_frames = self.config.down_frames
-        weight = evidence_weights(points, xy, area, ok_new, steep, self.scale_mm_per_px,
-                                  self.config)
         cfg, low_mm = self.config, self._pending_low_mm()
+        down_frames = cfg.down_frames
+        weight = evidence_weights(points, xy, area, ok_new, steep, self.scale_mm_per_px, cfg)
+        # the counts in frames of this stream (reference frames when frame is 1: exactly so).
+        # A contact's first frame counts as one reference frame at any rate, each further frame
+        # as its length: the evidence is how long it has been seen, so a contact seen in two
+        # frames at 15 fps (67 ms apart) has as much as one seen in three at 30 fps
+        grow = weight if frame == 1.0 else [v * frame for v in weight]
+        up_n = max(1, frames_for(cfg.up_frames, frame))
+        gap_n = frames_for(cfg.pending_gap_frames, frame)
+        low_gap_n = frames_for(cfg.pending_low_gap_frames, frame)
+        decay, low_decay = cfg.pending_decay ** frame, cfg.pending_low_decay ** frame
         for i, t in enumerate(tracks):
             j = matched_t.get(i)
             if i in shift:
@@ -240,14 +262,14 @@ class Tracker:
                 keep.append(t)
                 continue
             if j is not None:
-                w_j = weight[j]
+                w_j = grow[j]
                 rise = t.core.update(core[j]) if t.core is not None else math.nan
                 if rise > lift_mm:  # (NaN compares False)
                     if t.active:
                         # its core rose above the contact's own level: lifted, though the tip
                         # still reads low; a missing frame, but the point stays taken
                         t.missing += 1
-                        if t.missing < cfg.up_frames:
+                        if t.missing < up_n:
                             out.append(TrackUpdate(t, "move", False))
                             keep.append(t)
                             continue
@@ -279,7 +301,7 @@ class Tracker:
                     out.append(TrackUpdate(t, "down", True))
                 keep.append(t)
             elif t.active:
-                if self._merged(t, pos, used) and t.merged < self.config.merge_frames:
+                if self._merged(t, pos, used) and t.merged < self._merge_n:
                     # a fingertip side by side with a touching neighbour merged into its region:
                     # it is hidden, not lifted; hold it where it was
                     t.merged += 1
@@ -287,18 +309,17 @@ class Tracker:
                     keep.append(t)
                     continue
                 t.missing += 1
-                if t.missing >= self.config.up_frames:
+                if t.missing >= up_n:
                     out.append(TrackUpdate(t, "up", False))
                 else:
                     out.append(TrackUpdate(t, "move", False))
                     keep.append(t)
-            elif t.missing < (cfg.pending_low_gap_frames if (low := t.height_mm <= low_mm)
-                              else cfg.pending_gap_frames):
+            elif t.missing < (low_gap_n if (low := t.height_mm <= low_mm) else gap_n):
                 # a pending contact unseen this frame (a tip at the band's edge at range flickers
                 # in and out of it): kept, its evidence fading, for pending_gap_frames frames
                 # (pending_low_gap_frames when its tip was low, where pixels are small)
                 t.missing += 1
-                t.evidence *= cfg.pending_low_decay if low else cfg.pending_decay
+                t.evidence *= low_decay if low else decay
                 keep.append(t)
             # otherwise an unmatched pending track is dropped (it never went down)
         for j in range(n_p):
@@ -428,7 +449,7 @@ class Tracker:
         for k, members in cand.items():
             members = [i for i in members if i not in grouped]  # one group per contact
             tracks = [self.tracks[i] for i in members]
-            if (len(members) > 1 and all(t.merged < self.config.merge_frames for t in tracks)
+            if (len(members) > 1 and all(t.merged < self._merge_n for t in tracks)
                     and area_px[k] >= ratio * max(t.area_px for t in tracks)):
                 groups[k] = members
                 grouped.update(members)

@@ -1,0 +1,60 @@
+"""The stream's frame rate, from the frames' timestamps, for the tracker's frame counts.
+
+The tracker's counts (evidence toward ``down``, grace before ``up``, how long a pending or
+merged contact is kept) were chosen at one frame rate, ``TrackingConfig.reference_fps``. A
+camera at 60 fps sees a speck of noise at a finger's edge for as long, but in twice as many
+frames: counted in frames, it would go down in half the time. :class:`FrameRate` gives the
+length of a frame in reference frames, so that each count keeps its duration.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+
+# intervals the rate is the median of: a dropped frame or a late timestamp moves no median
+_INTERVALS = 15
+# within this share of the reference interval, frames count as reference frames (timestamps
+# in whole ms at 30 fps give 33 and 34 ms)
+_SAME_RATE = 0.1
+
+
+class FrameRate:
+    """``update(t_s)`` once per frame returns the frame's length in reference frames; ``reset()``
+    forgets the stream.
+
+    1.0 until two timestamps are known, with ``reference_fps`` 0, or while the median interval
+    lies within 10 % of the reference interval; otherwise median interval x ``reference_fps``
+    (0.5 at 60 fps against 30).
+    """
+
+    def __init__(self, reference_fps: float) -> None:
+        self.reference_fps = reference_fps
+        self._dt: deque[float] = deque(maxlen=_INTERVALS)
+        self._last: float | None = None
+        self.frame = 1.0
+
+    def reset(self) -> None:
+        self._dt.clear()
+        self._last = None
+        self.frame = 1.0
+
+    def update(self, t_s: float | None) -> float:
+        if t_s is None or not math.isfinite(t_s) or self.reference_fps <= 0:
+            return self.frame
+        last, self._last = self._last, t_s
+        if last is None or t_s <= last:  # the first frame, a repeated or a reordered timestamp
+            return self.frame
+        self._dt.append(t_s - last)
+        ordered = sorted(self._dt)
+        n = len(ordered)
+        median = (ordered[n // 2] if n % 2 else 0.5 * (ordered[n // 2 - 1] + ordered[n // 2]))
+        k = median * self.reference_fps
+        self.frame = 1.0 if abs(k - 1.0) <= _SAME_RATE else k
+        return self.frame
+
+
+def frames_for(count: float, frame: float) -> int:
+    """How many frames of length ``frame`` (in reference frames) last ``count`` reference frames,
+    to the nearest frame (halves up)."""
+    return int(math.floor(count / frame + 0.5))

@@ -1,0 +1,93 @@
+"""The tracker's frame counts keep their duration at other frame rates (TrackingConfig.reference_fps)."""
+
+import numpy as np
+import pytest
+
+from depthtouch.config import TrackingConfig
+from depthtouch.errors import ConfigError
+from depthtouch.tracking.framerate import FrameRate, frames_for
+from depthtouch.tracking.tracker import Tracker
+from depthtouch.types import TouchPoints
+
+
+def pts(*xyh: tuple[float, float, float]) -> TouchPoints:
+    """Points of 50 px regions (below a tip's area at 1 mm per px: weak evidence)."""
+    if not xyh:
+        return TouchPoints.empty()
+    a = np.array(xyh, np.float64)
+    return TouchPoints(a[:, :2], a[:, 2], np.full(len(a), 50), np.full((len(a), 2), np.nan))
+
+
+def _states(tracker: Tracker, frames: list, fps: float) -> list[list[str]]:
+    return [[u.state for u in tracker.update(f, i / fps)] for i, f in enumerate(frames)]
+
+
+def test_frame_length_from_the_median_interval():
+    r = FrameRate(30.0)
+    assert r.update(None) == 1.0 and r.update(0.0) == 1.0  # nothing to measure yet
+    for i in range(1, 20):
+        k = r.update(i / 60.0)
+    assert k == pytest.approx(0.5)
+    # one dropped frame (a 2-frame gap) and one repeated timestamp move no median
+    t = 19 / 60.0
+    assert r.update(t + 2 / 60.0) == pytest.approx(0.5)
+    assert r.update(t + 2 / 60.0) == pytest.approx(0.5)
+    r.reset()
+    assert r.update(1.0) == 1.0
+    for i in range(1, 20):
+        k = r.update(1.0 + i / 15.0)
+    assert k == pytest.approx(2.0)
+
+
+def test_whole_ms_timestamps_at_the_reference_rate_count_as_frames():
+    r = FrameRate(30.0)
+    t = 0.0
+    for i in range(40):
+        t += 0.033 if i % 3 else 0.034
+        assert r.update(t) == 1.0
+
+
+def test_zero_reference_counts_frames_at_any_rate():
+    r = FrameRate(0.0)
+    assert [r.update(i / 90.0) for i in range(10)] == [1.0] * 10
+
+
+def test_frames_for_rounds_to_the_nearest_frame():
+    assert frames_for(3, 1.0) == 3 and frames_for(3, 0.5) == 6 and frames_for(3, 2.0) == 2
+    assert frames_for(1, 2.0) == 1 and frames_for(1, 3.0) == 0 and frames_for(0, 0.5) == 0
+
+
+@pytest.mark.parametrize("fps, down_at, up_after", [(30.0, 1, 3), (60.0, 2, 6), (15.0, 1, 2)])
+def test_down_and_grace_keep_their_duration(fps: float, down_at: int, up_after: int):
+    # down_frames 2 at 30 fps: seen in 2 frames, 33 ms apart; as long at 60 fps: 3 frames; at
+    # 15 fps 2 frames (a first frame alone is never enough). up_frames 3: 100 ms missing, 6
+    # frames at 60 fps, 2 at 15 fps
+    cfg = TrackingConfig(weak_evidence=1.0, down_frames=2, up_frames=3)
+    tr = Tracker(cfg, scale_mm_per_px=1.0)
+    seen = [pts((10.0 + 0.1 * i, 10.0, 5.0)) for i in range(8)]
+    # (three frames without touches first: the rate is known from the second timestamp on)
+    out = _states(tr, [pts()] * 3 + seen + [pts()] * 8, fps)[3:]
+    assert [i for i, s in enumerate(out) if "down" in s] == [down_at]
+    assert [i for i, s in enumerate(out) if "up" in s] == [8 + up_after - 1]
+
+
+def test_a_speck_as_long_in_time_at_60_fps_stays_a_speck():
+    # weak evidence (0.4 a frame) needs 5 frames at 30 fps (133 ms from first to last); the
+    # same 5 frames at 60 fps last half as long and are not a touch; 9 are
+    cfg = TrackingConfig(down_frames=2, weak_evidence=0.4)
+    empty = [pts()] * 3
+    speck = [pts((10.0, 10.0, 5.0))] * 5  # area 50 px at 1 mm/px: below a tip's area
+    assert any("down" in s for s in _states(Tracker(cfg, scale_mm_per_px=1.0), empty + speck, 30.0))
+    assert not any("down" in s
+                   for s in _states(Tracker(cfg, scale_mm_per_px=1.0), empty + speck, 60.0))
+    out = _states(Tracker(cfg, scale_mm_per_px=1.0), empty + speck * 2, 60.0)[3:]
+    assert [i for i, s in enumerate(out) if "down" in s] == [8]
+    # with the scaling off, frames are frames
+    off = TrackingConfig(down_frames=2, weak_evidence=0.4, reference_fps=0.0)
+    out = _states(Tracker(off, scale_mm_per_px=1.0), empty + speck, 60.0)[3:]
+    assert [i for i, s in enumerate(out) if "down" in s] == [4]
+
+
+def test_reference_fps_is_validated():
+    with pytest.raises(ConfigError, match="reference_fps"):
+        TrackingConfig(reference_fps=-1.0).validate()
