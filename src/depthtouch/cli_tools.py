@@ -63,6 +63,9 @@ def _add_eval(sub: argparse._SubParsersAction) -> None:
                         "$DEPTHTOUCH_CACHE) and reuse them")
     p.add_argument("--half", choices=("tune", "held-out", "all"),
                    help="with --suite: the tune or held-out half (or all), both side by side")
+    p.add_argument("--fps", type=float,
+                   help="with --suite: render every case at this frame rate (Hz, 1-120) "
+                        "instead of the suite's 30")
     p.add_argument("--json", action="store_true", help="print the metrics as JSON")
     p.add_argument("--space", choices=("depth", "screen"), default="depth",
                    help="score --events by x, y (depth) or sx, sy (screen: fused cameras of "
@@ -85,7 +88,10 @@ def _add_eval(sub: argparse._SubParsersAction) -> None:
                 raise ConfigError("--half needs --suite NAME (e.g. --suite hard --half held-out)")
             return print_halves(a.suite, a.half, subset=a.subset, config=cfg,
                                 workers=a.workers, cache=cache_root() if a.cache else None,
-                                as_json=a.json, progress=None if a.json else _print_case)
+                                as_json=a.json, progress=None if a.json else _print_case,
+                                fps=a.fps)
+        if a.fps is not None and not a.suite:
+            raise ConfigError("--fps needs --suite NAME (a recording has its own frame rate)")
         if a.gestures:
             from .evaluation.gestures import gestures_output
 
@@ -98,7 +104,7 @@ def _add_eval(sub: argparse._SubParsersAction) -> None:
             metrics = eval_suite_command(
                 a.suite, subset=a.subset, by=a.by, config=cfg, workers=a.workers,
                 cache=cache_root() if a.cache else None,
-                progress=None if a.json else _print_case,
+                progress=None if a.json else _print_case, fps=a.fps,
             )
         else:
             metrics = eval_recording_command(a.recording, a.truth, events_path=a.events,

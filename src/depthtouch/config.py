@@ -346,18 +346,19 @@ class TrackingConfig:
         hard-fresh2: id switches 8 -> 6, error p95 at the new placements 8.14 -> 7.82 mm, no
         contact or false touch changed; the held-out sets were unchanged (ranges [0, 1] and
         [0, 1000] mm; a ratio of 0 turns it off).
-    reference_fps: the frame rate the frame counts above are meant at (default 30 Hz, the rate
-        every suite was recorded and tuned at): down_frames, up_frames, merge_frames,
-        pending_gap_frames, pending_low_gap_frames and the decays per frame. At another rate,
-        measured from the frames' timestamps (the median of the last 15 intervals), each keeps
-        its duration: a contact's first frame counts as one frame and each further frame as
-        its length, so that evidence is how long it has been seen (down_frames 2: seen 33 ms
-        apart, in 3 frames at 60 fps, 2 at 15 fps), and a contact may be missing for 100 ms
-        (up_frames 3: 6 frames at 60 fps). Within 10 % of it (timestamps in whole ms, a
-        dropped frame) the counts are frames. Why: at 60 fps the hard suite's tune half
-        made 30 false touches instead of 13, specks that last as many frames as before but
-        half as long (docs/accuracy.md, session 27). 0 counts frames at any rate (range
-        [0, 1000] Hz).
+    reference_fps: the frame rate the evidence toward down (down_frames and the weights) is
+        meant at (default 30 Hz, the rate every suite was recorded and tuned at). In a faster
+        stream, measured from the frames' timestamps (the median of the last 15 intervals), a
+        contact's first frame counts as one frame and each further frame as its length, so
+        that down takes as long and as many frames as at 30 fps (down_frames 2: seen 33 ms
+        apart, in 3 frames at 60 fps; weak evidence 0.4: 133 ms). A slower stream, or one
+        within 10 % of the rate (timestamps in whole ms), counts frames: noise comes frame by
+        frame. up_frames, merge_frames and the pending counts stay in frames at any rate.
+        Why: at 60 fps the hard suite's tune half made 30 false touches instead of 13 at
+        30 fps, specks that lasted as many frames in half the time; with it, 11. Counting a
+        15 fps frame double raised them from 6 to 27, and scaling the grace as well held a
+        false touch for 33 frames instead of 5 (docs/accuracy.md, session 27). 0 counts
+        frames at any rate (range [0, 1000] Hz).
     """
 
     gate_mm: float = 40.0

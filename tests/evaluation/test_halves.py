@@ -84,6 +84,18 @@ def test_half_depends_on_seed_and_placement_only() -> None:
     assert halves == set(HALVES)  # the placement moves cases between halves too
 
 
+def test_a_suite_at_another_frame_rate_keeps_its_cases_tags_and_halves() -> None:
+    hard = load_suite("hard")
+    fast = hard.at_fps(60)
+    assert hard.at_fps(None) is hard
+    assert [dataclasses.replace(c, fps=30.0) for c in fast.cases] == list(hard.cases)
+    assert {c.fps for c in fast.cases} == {60.0}
+    assert [half_of(c) for c in fast.cases] == [half_of(c) for c in hard.cases]
+    assert fast.select("far") == [dataclasses.replace(c, fps=60.0) for c in hard.select("far")]
+    # another rate is another recording
+    assert fast.cases[0].cache_key() != hard.cases[0].cache_key()
+
+
 def test_bad_half_is_a_config_error() -> None:
     with pytest.raises(ConfigError, match="use tune, held-out or all"):
         select_half([], "train")
@@ -173,6 +185,8 @@ def test_report_puts_halves_side_by_side_per_situation() -> None:
 @pytest.mark.parametrize(("argv", "needle"), [
     (["eval", "--half", "tune"], "--half needs --suite NAME"),
     (["eval", "--suite", "hard", "--subset", "nope", "--half", "tune"], "has no subset 'nope'"),
+    (["eval", "--fps", "60", "x.npz"], "--fps needs --suite NAME"),
+    (["eval", "--suite", "hard", "--fps", "500", "--half", "tune"], "fps 500.0 is out of range"),
 ])
 def test_cli_half_errors_are_one_line(argv: list[str], needle: str,
                                       capsys: pytest.CaptureFixture[str]) -> None:

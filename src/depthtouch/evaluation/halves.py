@@ -158,9 +158,11 @@ def eval_halves_command(
     workers: int | None = None,
     cache: Path | None = None,
     progress: Callable[[SuiteCase, EvalResult], None] | None = None,
+    fps: float | None = None,
 ) -> dict[str, Any]:
-    """``depthtouch eval --suite NAME --half tune|held-out|all``: :func:`halves_report`."""
-    s = load_suite(suite)
+    """``depthtouch eval --suite NAME --half tune|held-out|all``: :func:`halves_report`
+    (``fps``: every case rendered at this frame rate instead of the suite's)."""
+    s = load_suite(suite).at_fps(fps)
     cases = select_half(s.select(subset), half)
     if not cases:
         raise ConfigError(f"suite {s.name} has no {half} cases; give each placement two seeds")
@@ -260,13 +262,14 @@ def halves_tables(report: dict[str, Any]) -> tuple[Table, Table]:
 def print_halves(suite: str | Path, half: str, *, subset: str | None = None,
                  config: PipelineConfig | None = None, workers: int | None = None,
                  cache: Path | None = None, as_json: bool = False,
-                 progress: Callable[[SuiteCase, EvalResult], None] | None = None) -> int:
+                 progress: Callable[[SuiteCase, EvalResult], None] | None = None,
+                 fps: float | None = None) -> int:
     """The CLI's ``eval --suite NAME --half H``: print the tables (or JSON); returns 0."""
     import json
     import sys
 
     report = eval_halves_command(suite, half=half, subset=subset, config=config,
-                                 workers=workers, cache=cache, progress=progress)
+                                 workers=workers, cache=cache, progress=progress, fps=fps)
     if as_json:
         print(json.dumps(report, indent=1))
         return 0

@@ -114,6 +114,18 @@ class Suite:
             )
         return chosen
 
+    def at_fps(self, fps: float | None) -> Suite:
+        """The same cases rendered at ``fps`` (Hz, [1, 120]) instead of their own rate (None:
+        this suite). Halves stay the same: they split by seed and placement."""
+        if fps is None:
+            return self
+        from ..sim.render import check_render_args
+
+        check_render_args(fps, 0)
+        moved = {c: dataclasses.replace(c, fps=float(fps)) for c in self.cases}
+        return Suite(self.name, self.gate_mm, tuple(dict.fromkeys(moved.values())),
+                     {moved[c]: t for c, t in self.tags.items()})
+
 
 # --- loading -------------------------------------------------------------------------------------
 def _sim_names() -> tuple[tuple[str, ...], tuple[str, ...]]:
@@ -490,12 +502,14 @@ def eval_suite_command(
     workers: int | None = None,
     cache: Path | None = None,
     progress: Callable[[SuiteCase, EvalResult], None] | None = None,
+    fps: float | None = None,
 ) -> dict[str, Metrics]:
     """``depthtouch eval --suite NAME``: metrics pooled by ``by``, plus ``all`` at the end.
 
     cache: keep the rendered recordings in this folder (None: render in memory only).
+    fps: render every case at this frame rate (None: the suite's own, 30 fps).
     """
-    s = load_suite(suite)
+    s = load_suite(suite).at_fps(fps)
     cases = s.select(subset)
     results = run_cases(cases, config, gate_mm=s.gate_mm, workers=workers or default_workers(),
                         cache=cache, progress=progress)

@@ -1,10 +1,13 @@
-"""The stream's frame rate, from the frames' timestamps, for the tracker's frame counts.
+"""The stream's frame rate, from the frames' timestamps, for the tracker's evidence.
 
-The tracker's counts (evidence toward ``down``, grace before ``up``, how long a pending or
-merged contact is kept) were chosen at one frame rate, ``TrackingConfig.reference_fps``. A
-camera at 60 fps sees a speck of noise at a finger's edge for as long, but in twice as many
-frames: counted in frames, it would go down in half the time. :class:`FrameRate` gives the
-length of a frame in reference frames, so that each count keeps its duration.
+The evidence a new contact needs before ``down`` was chosen at one frame rate,
+``TrackingConfig.reference_fps``. A camera at 60 fps sees a speck of mixed pixels under a
+descending finger's rim for as long, but in twice as many frames: counted in frames, it would
+go down in half the time. :class:`FrameRate` gives the length of a frame in reference frames
+(at most 1), so that the evidence takes at least as long and at least as many frames as at the
+reference rate. (The grace before ``up`` and the pending and merged contacts' counts stay in
+frames: a dropout comes frame by frame. Scaling them too held a false touch at 60 fps for 33
+frames instead of 5; docs/accuracy.md, session 27.)
 """
 
 from __future__ import annotations
@@ -24,8 +27,13 @@ class FrameRate:
     forgets the stream.
 
     1.0 until two timestamps are known, with ``reference_fps`` 0, or while the median interval
-    lies within 10 % of the reference interval; otherwise median interval x ``reference_fps``
-    (0.5 at 60 fps against 30).
+    is longer than 90 % of the reference interval; otherwise median interval x
+    ``reference_fps`` (0.5 at 60 fps against 30).
+
+    A slower stream's frames count as one each, not more: noise comes frame by frame, and a
+    speck seen in three frames at 15 fps is as unlikely as one seen in three at 30 fps. At 15
+    fps, counting frames by their length raised the hard suite's false touches on its tune
+    half from 6 to 27 (docs/accuracy.md, session 27).
     """
 
     def __init__(self, reference_fps: float) -> None:
@@ -50,11 +58,6 @@ class FrameRate:
         n = len(ordered)
         median = (ordered[n // 2] if n % 2 else 0.5 * (ordered[n // 2 - 1] + ordered[n // 2]))
         k = median * self.reference_fps
-        self.frame = 1.0 if abs(k - 1.0) <= _SAME_RATE else k
+        self.frame = 1.0 if k >= 1.0 - _SAME_RATE else k
         return self.frame
 
-
-def frames_for(count: float, frame: float) -> int:
-    """How many frames of length ``frame`` (in reference frames) last ``count`` reference frames,
-    to the nearest frame (halves up)."""
-    return int(math.floor(count / frame + 0.5))

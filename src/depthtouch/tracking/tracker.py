@@ -22,8 +22,9 @@ a touching tip), and a pending one gains no evidence then. A contact that is dow
 jump onto a point that an established pending contact lies much nearer to (``yield_ratio``):
 when its own tip drops out for a frame, the nearest point is often a hovering finger or hand
 beside it; it counts as missing instead, and nobody takes that point in that frame.
-Ids are never reused within a run. The counts are in frames at ``reference_fps``: at another
-rate (from the frames' timestamps, :mod:`.framerate`) each keeps its duration.
+Ids are never reused within a run. The evidence counts frames at ``reference_fps``: in a
+faster stream (from the frames' timestamps, :mod:`.framerate`) a frame counts its length, so
+that a contact goes down after as many frames and as much time as at that rate.
 """
 
 from __future__ import annotations
@@ -38,7 +39,7 @@ from scipy.optimize import linear_sum_assignment
 from ..config import TouchPointConfig, TrackingConfig
 from ..types import TouchPoints, TouchState
 from .evidence import XY, evidence_weights, steep_tips
-from .framerate import FrameRate, frames_for
+from .framerate import FrameRate
 from .lift import CoreHistory
 
 _BIG = 1e9
@@ -137,13 +138,11 @@ class Tracker:
     scale_mm_per_px: float | None = None
     next_id: int = 1
     tracks: list[Track] = field(default_factory=list)
-    # the frame counts' frames at this stream's rate (TrackingConfig.reference_fps)
+    # the length of this stream's frames for the evidence (TrackingConfig.reference_fps)
     _rate: FrameRate = field(init=False, repr=False)
-    _merge_n: int = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
         self._rate = FrameRate(self.config.reference_fps)
-        self._merge_n = self.config.merge_frames
 
     def reset(self) -> None:
         """Forget all tracks and the stream's frame rate; ids keep increasing (never reused
@@ -174,7 +173,6 @@ class Tracker:
         """Advance one frame with this frame's touch points (``t_s``: its timestamp, s; None
         counts it as a frame at ``reference_fps``); returns the reported tracks."""
         frame = self._rate.update(t_s)
-        self._merge_n = frames_for(self.config.merge_frames, frame)
         tracks = self.tracks
         n_t, n_p = len(tracks), len(points)
         if not n_t and not n_p:
@@ -231,15 +229,10 @@ class Tracker:
         cfg, low_mm = self.config, self._pending_low_mm()
         down_frames = cfg.down_frames
         weight = evidence_weights(points, xy, area, ok_new, steep, self.scale_mm_per_px, cfg)
-        # the counts in frames of this stream (reference frames when frame is 1: exactly so).
-        # A contact's first frame counts as one reference frame at any rate, each further frame
-        # as its length: the evidence is how long it has been seen, so a contact seen in two
-        # frames at 15 fps (67 ms apart) has as much as one seen in three at 30 fps
+        # in a stream faster than reference_fps, a contact's first frame counts as one
+        # reference frame and each further frame as its length: its evidence is how long it
+        # has been seen (exactly the weights at the reference rate and slower)
         grow = weight if frame == 1.0 else [v * frame for v in weight]
-        up_n = max(1, frames_for(cfg.up_frames, frame))
-        gap_n = frames_for(cfg.pending_gap_frames, frame)
-        low_gap_n = frames_for(cfg.pending_low_gap_frames, frame)
-        decay, low_decay = cfg.pending_decay ** frame, cfg.pending_low_decay ** frame
         for i, t in enumerate(tracks):
             j = matched_t.get(i)
             if i in shift:
@@ -269,7 +262,7 @@ class Tracker:
                         # its core rose above the contact's own level: lifted, though the tip
                         # still reads low; a missing frame, but the point stays taken
                         t.missing += 1
-                        if t.missing < up_n:
+                        if t.missing < cfg.up_frames:
                             out.append(TrackUpdate(t, "move", False))
                             keep.append(t)
                             continue
@@ -301,7 +294,7 @@ class Tracker:
                     out.append(TrackUpdate(t, "down", True))
                 keep.append(t)
             elif t.active:
-                if self._merged(t, pos, used) and t.merged < self._merge_n:
+                if self._merged(t, pos, used) and t.merged < cfg.merge_frames:
                     # a fingertip side by side with a touching neighbour merged into its region:
                     # it is hidden, not lifted; hold it where it was
                     t.merged += 1
@@ -309,17 +302,18 @@ class Tracker:
                     keep.append(t)
                     continue
                 t.missing += 1
-                if t.missing >= up_n:
+                if t.missing >= cfg.up_frames:
                     out.append(TrackUpdate(t, "up", False))
                 else:
                     out.append(TrackUpdate(t, "move", False))
                     keep.append(t)
-            elif t.missing < (low_gap_n if (low := t.height_mm <= low_mm) else gap_n):
+            elif t.missing < (cfg.pending_low_gap_frames if (low := t.height_mm <= low_mm)
+                              else cfg.pending_gap_frames):
                 # a pending contact unseen this frame (a tip at the band's edge at range flickers
                 # in and out of it): kept, its evidence fading, for pending_gap_frames frames
                 # (pending_low_gap_frames when its tip was low, where pixels are small)
                 t.missing += 1
-                t.evidence *= low_decay if low else decay
+                t.evidence *= cfg.pending_low_decay if low else cfg.pending_decay
                 keep.append(t)
             # otherwise an unmatched pending track is dropped (it never went down)
         for j in range(n_p):
@@ -449,7 +443,7 @@ class Tracker:
         for k, members in cand.items():
             members = [i for i in members if i not in grouped]  # one group per contact
             tracks = [self.tracks[i] for i in members]
-            if (len(members) > 1 and all(t.merged < self._merge_n for t in tracks)
+            if (len(members) > 1 and all(t.merged < self.config.merge_frames for t in tracks)
                     and area_px[k] >= ratio * max(t.area_px for t in tracks)):
                 groups[k] = members
                 grouped.update(members)
