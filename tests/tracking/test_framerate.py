@@ -56,7 +56,7 @@ def test_down_takes_as_long_and_as_many_frames(fps: float, down_at: int):
     # down_frames 2 at 30 fps: seen in 2 frames, 33 ms apart; as long at 60 fps: 3 frames, at
     # 90 fps 4; at 15 fps 2 frames as at 30. The grace before up stays 3 frames at any rate
     up_after = 3
-    cfg = TrackingConfig(weak_evidence=1.0, down_frames=2, up_frames=3)
+    cfg = TrackingConfig(weak_evidence=1.0, down_frames=2, up_frames=3, reference_fps=30.0)
     tr = Tracker(cfg, scale_mm_per_px=1.0)
     seen = [pts((10.0 + 0.1 * i, 10.0, 5.0)) for i in range(8)]
     # (three frames without touches first: the rate is known from the second timestamp on)
@@ -68,7 +68,7 @@ def test_down_takes_as_long_and_as_many_frames(fps: float, down_at: int):
 def test_a_speck_as_long_in_time_at_60_fps_stays_a_speck():
     # weak evidence (0.4 a frame) needs 5 frames at 30 fps (133 ms from first to last); the
     # same 5 frames at 60 fps last half as long and are not a touch; 9 are
-    cfg = TrackingConfig(down_frames=2, weak_evidence=0.4)
+    cfg = TrackingConfig(down_frames=2, weak_evidence=0.4, reference_fps=30.0)
     empty = [pts()] * 3
     speck = [pts((10.0, 10.0, 5.0))] * 5  # area 50 px at 1 mm/px: below a tip's area
     assert any("down" in s for s in _states(Tracker(cfg, scale_mm_per_px=1.0), empty + speck, 30.0))
@@ -76,8 +76,9 @@ def test_a_speck_as_long_in_time_at_60_fps_stays_a_speck():
                    for s in _states(Tracker(cfg, scale_mm_per_px=1.0), empty + speck, 60.0))
     out = _states(Tracker(cfg, scale_mm_per_px=1.0), empty + speck * 2, 60.0)[3:]
     assert [i for i, s in enumerate(out) if "down" in s] == [8]
-    # with the scaling off, frames are frames
-    off = TrackingConfig(down_frames=2, weak_evidence=0.4, reference_fps=0.0)
+    # with the scaling off (the default), frames are frames
+    off = TrackingConfig(down_frames=2, weak_evidence=0.4)
+    assert off.reference_fps == 0.0
     out = _states(Tracker(off, scale_mm_per_px=1.0), empty + speck, 60.0)[3:]
     assert [i for i, s in enumerate(out) if "down" in s] == [4]
 

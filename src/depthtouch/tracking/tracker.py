@@ -22,9 +22,10 @@ a touching tip), and a pending one gains no evidence then. A contact that is dow
 jump onto a point that an established pending contact lies much nearer to (``yield_ratio``):
 when its own tip drops out for a frame, the nearest point is often a hovering finger or hand
 beside it; it counts as missing instead, and nobody takes that point in that frame.
-Ids are never reused within a run. The evidence counts frames at ``reference_fps``: in a
-faster stream (from the frames' timestamps, :mod:`.framerate`) a frame counts its length, so
-that a contact goes down after as many frames and as much time as at that rate.
+Ids are never reused within a run. With ``reference_fps`` set (off by default), the evidence
+counts frames at that rate: in a faster stream (from the frames' timestamps,
+:mod:`.framerate`) a frame counts its length, so that a contact goes down after as many
+frames and as much time as at that rate.
 """
 
 from __future__ import annotations
