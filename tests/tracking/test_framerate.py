@@ -86,3 +86,21 @@ def test_a_speck_as_long_in_time_at_60_fps_stays_a_speck():
 def test_reference_fps_is_validated():
     with pytest.raises(ConfigError, match="reference_fps"):
         TrackingConfig(reference_fps=-1.0).validate()
+
+
+@pytest.mark.parametrize("fps, gate_fps, same_id", [(15.0, 30.0, True), (30.0, 30.0, False),
+                                                    (15.0, 0.0, False), (60.0, 30.0, False)])
+def test_gate_grows_in_a_slower_stream(fps: float, gate_fps: float, same_id: bool):
+    # a still finger (2 frames) then a 60 mm jump in one frame: beyond the 40 mm gate at
+    # 30 fps (1.8 m/s), within it at 15 fps (0.9 m/s, gate 80 mm)
+    cfg = TrackingConfig(weak_evidence=1.0, down_frames=1, up_frames=2, gate_fps=gate_fps)
+    tr = Tracker(cfg, scale_mm_per_px=1.0)
+    frames = [pts()] * 3 + [pts((100.0, 100.0, 5.0))] * 2 + [pts((160.0, 100.0, 5.0))]
+    ids = [{u.track.id for u in tr.update(f, i / fps) if u.measured}
+           for i, f in enumerate(frames)]
+    assert (ids[-1] == ids[-2] == {1}) is same_id
+
+
+def test_gate_fps_is_validated():
+    with pytest.raises(ConfigError, match="gate_fps"):
+        TrackingConfig(gate_fps=-3.0).validate()

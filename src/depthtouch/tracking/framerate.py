@@ -32,25 +32,33 @@ class FrameRate:
     is longer than 90 % of the reference interval; otherwise median interval x
     ``reference_fps`` (0.5 at 60 fps against 30).
 
+    ``gate``: how many frames at ``gate_fps`` one frame lasts when that is more than 1.1
+    (else 1): in a slower stream a finger moves farther between frames, and the tracker's gate
+    grows by this factor.
+
     A slower stream's frames count as one each, not more: noise comes frame by frame, and a
     speck seen in three frames at 15 fps is as unlikely as one seen in three at 30 fps. At 15
     fps, counting frames by their length raised the hard suite's false touches on its tune
     half from 6 to 27 (docs/accuracy.md, session 27).
     """
 
-    def __init__(self, reference_fps: float) -> None:
+    def __init__(self, reference_fps: float, gate_fps: float = 0.0) -> None:
         self.reference_fps = reference_fps
+        self.gate_fps = gate_fps
         self._dt: deque[float] = deque(maxlen=_INTERVALS)
         self._last: float | None = None
         self.frame = 1.0
+        self.gate = 1.0
 
     def reset(self) -> None:
         self._dt.clear()
         self._last = None
         self.frame = 1.0
+        self.gate = 1.0
 
     def update(self, t_s: float | None) -> float:
-        if t_s is None or not math.isfinite(t_s) or self.reference_fps <= 0:
+        if t_s is None or not math.isfinite(t_s) or (self.reference_fps <= 0
+                                                      and self.gate_fps <= 0):
             return self.frame
         last, self._last = self._last, t_s
         if last is None or t_s <= last:  # the first frame, a repeated or a reordered timestamp
@@ -60,6 +68,8 @@ class FrameRate:
         n = len(ordered)
         median = (ordered[n // 2] if n % 2 else 0.5 * (ordered[n // 2 - 1] + ordered[n // 2]))
         k = median * self.reference_fps
-        self.frame = 1.0 if k >= 1.0 - _SAME_RATE else k
+        self.frame = 1.0 if k <= 0.0 or k >= 1.0 - _SAME_RATE else k
+        g = median * self.gate_fps
+        self.gate = g if g > 1.0 + _SAME_RATE else 1.0
         return self.frame
 

@@ -143,7 +143,7 @@ class Tracker:
     _rate: FrameRate = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
-        self._rate = FrameRate(self.config.reference_fps)
+        self._rate = FrameRate(self.config.reference_fps, self.config.gate_fps)
 
     def reset(self) -> None:
         """Forget all tracks and the stream's frame rate; ids keep increasing (never reused
@@ -162,7 +162,15 @@ class Tracker:
 
     @property
     def gate(self) -> float:
+        """The largest jump between frames that keeps an id (mm, or px without a scale)."""
         return self.config.gate_mm if self.scale_mm_per_px is not None else self.config.gate_px
+
+    @property
+    def gate_down(self) -> float:
+        """The gate of a contact that is down: grown in a stream slower than gate_fps when set
+        (a drag moves farther between frames; a pending contact keeps :attr:`gate`, so that it
+        cannot take a point farther away than at gate_fps)."""
+        return self.gate * self._rate.gate
 
     @property
     def merge_near(self) -> float:
@@ -369,13 +377,14 @@ class Tracker:
         """
         if len(self.tracks) * len(pos) > _PY_COST_MAX:
             return self._cost_array(pos, ok_cont, ok_new)
-        gate = self.gate
-        # a point farther than this on one axis, from both the prediction and the last position,
-        # is beyond the gate: the margin keeps that exact through the rounding of the distance
-        far = gate * (1.0 + 1e-6)
+        gates = (self.gate, self.gate_down)
         sqrt = math.sqrt
         cost: list[list[float]] = []
         for t in self.tracks:
+            gate = gates[t.active]
+            # a point farther than this on one axis, from both the prediction and the last
+            # position, is beyond the gate: the margin keeps that exact through the rounding
+            far = gate * (1.0 + 1e-6)
             lx, ly = t.pos
             k = 1 + t.missing
             px, py = lx + t.vel[0] * k, ly + t.vel[1] * k
@@ -405,7 +414,8 @@ class Tracker:
         dist = np.sqrt(np.minimum((dp * dp).sum(axis=2), (dl * dl).sum(axis=2)))
         is_active = np.array([t.active for t in self.tracks])
         allowed = np.where(is_active[:, None], np.array(ok_cont)[None, :], np.array(ok_new)[None, :])
-        cost: list[list[float]] = np.where(allowed & (dist <= self.gate), dist, _BIG).tolist()
+        gate = np.where(is_active, self.gate_down, self.gate)[:, None]
+        cost: list[list[float]] = np.where(allowed & (dist <= gate), dist, _BIG).tolist()
         return cost
 
     def _merge_groups(
