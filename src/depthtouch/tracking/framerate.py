@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import math
 from collections import deque
+from statistics import median
 
 # intervals the rate is the median of: a dropped frame or a late timestamp moves no median
 _INTERVALS = 15
@@ -25,12 +26,12 @@ _SAME_RATE = 0.1
 
 
 class FrameRate:
-    """``update(t_s)`` once per frame returns the frame's length in reference frames; ``reset()``
-    forgets the stream.
+    """``update(t_s)`` once per frame returns ``frame`` (``gate`` is read after it);
+    ``reset()`` forgets the stream.
 
-    1.0 until two timestamps are known, with ``reference_fps`` 0, or while the median interval
-    is longer than 90 % of the reference interval; otherwise median interval x
-    ``reference_fps`` (0.5 at 60 fps against 30).
+    ``frame``: the frame's length in reference frames. 1.0 until two timestamps are known, with
+    ``reference_fps`` 0, or while the median interval is longer than 90 % of the reference
+    interval; otherwise median interval x ``reference_fps`` (0.5 at 60 fps against 30).
 
     ``gate``: how many frames at ``gate_fps`` one frame lasts when that is more than 1.1
     (else 1): in a slower stream a finger moves farther between frames, and the tracker's gate
@@ -64,12 +65,10 @@ class FrameRate:
         if last is None or t_s <= last:  # the first frame, a repeated or a reordered timestamp
             return self.frame
         self._dt.append(t_s - last)
-        ordered = sorted(self._dt)
-        n = len(ordered)
-        median = (ordered[n // 2] if n % 2 else 0.5 * (ordered[n // 2 - 1] + ordered[n // 2]))
-        k = median * self.reference_fps
+        dt = median(self._dt)
+        k = dt * self.reference_fps
         self.frame = 1.0 if k <= 0.0 or k >= 1.0 - _SAME_RATE else k
-        g = median * self.gate_fps
+        g = dt * self.gate_fps
         self.gate = g if g > 1.0 + _SAME_RATE else 1.0
         return self.frame
 
