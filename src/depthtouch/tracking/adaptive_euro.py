@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .eurokernel import FIELD_ORDER, PARAM_ORDER, euro_step
 from .filterbase import FilterBase, Param, smoothing_factor
 
 _HB = 32  # the last measurements kept per touch: the landing's window
@@ -148,6 +149,12 @@ class AdaptiveEuroFilter(FilterBase):
                "hx": (_HB,), "hy": (_HB,), "ht": (_HB,), "gx": (_HB,), "gy": (_HB,),
                "mv": (1,)}
 
+    def __init__(self, **params: float) -> None:
+        super().__init__(**params)
+        # the compiled step's inputs: the parameters and each field's first column, in order
+        self._prm = np.array([self.params[k] for k in PARAM_ORDER], np.float64)
+        self._cols = np.array([self._COLS[k].start for k in FIELD_ORDER], np.int64)
+
     def _init(self, rows: np.ndarray, xy: np.ndarray) -> None:
         st = self._state
         for k in ("v", "dx", "qt", "qtt", "qtx", "m", "n", "r2"):
@@ -167,6 +174,12 @@ class AdaptiveEuroFilter(FilterBase):
         st["gy"][rows, 0] = xy[:, 1]
 
     def _step(self, s: np.ndarray, xy: np.ndarray, dt_s: np.ndarray) -> np.ndarray:
+        # one compiled call for the frame (tracking/eurokernel.py); _step_arrays is its oracle
+        return euro_step(s, xy, dt_s, self._prm, self._cols, _HB)
+
+    def _step_arrays(self, s: np.ndarray, xy: np.ndarray, dt_s: np.ndarray) -> np.ndarray:
+        """The frame step in numpy array calls over all touches: the reference the compiled
+        step (:func:`~depthtouch.tracking.eurokernel.euro_step`) is tested against."""
         p_col, v_col, dx_col = self._COLS["p"], self._COLS["v"], self._COLS["dx"]
         prm = self.params
         v, p_old = s[:, v_col], s[:, p_col]
