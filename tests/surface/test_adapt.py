@@ -252,3 +252,33 @@ def test_save_surface_writes_the_surface_as_it_is_now(tmp_path):
     assert abs(float(p.surface.model().depth_mm[230, 300]) - 940.0) < 3.0
     (xyz,) = p.surface.xyz_mm([(300.0, 230.0)])
     assert xyz is not None and abs(xyz[2] - 940.0) < 3.0
+
+
+def test_stripe_median_is_numbas_median() -> None:
+    """The drift offset's median (a histogram, no branch on the data) equals numba's
+    ``np.median`` (quickselect, the former code) value for value: whole-mm values with many
+    ties, continuous ones, two clusters split at the middle, one outlier, odd and even counts."""
+    import numba
+
+    from depthtouch.surface.adapt import median_f32
+
+    @numba.njit
+    def reference(a: np.ndarray) -> float:
+        return float(np.median(a))
+
+    rng = np.random.default_rng(3)
+    for trial in range(1500):
+        n = int(rng.integers(1, 3000))
+        kind = trial % 5
+        if kind == 0:
+            a = rng.normal(0, 2, n)
+        elif kind == 1:
+            a = rng.integers(-4, 5, n).astype(float)
+        elif kind == 2:
+            a = rng.integers(-4, 5, n) - rng.integers(0, 3, n) / 3.0
+        elif kind == 3:
+            a = np.where(np.arange(n) < n // 2, -1.0, 2.5)  # the middle two in different bins
+        else:
+            a = np.concatenate([rng.normal(0, 1e-6, n), [1e6]])
+        a = a.astype(np.float32)
+        assert median_f32(a, a.min(), a.max()) == reference(a), (kind, n)
