@@ -6,7 +6,7 @@ events as a pipeline run with it. Prints still-finger jitter, position error and
 variant, overall and per camera placement.
 
 Run: ``.venv/bin/python benchmarks/filter_replay.py --suite hard --half tune
-[--records FILE] [--variant '{"name": "adaptive_euro", "params": {"land_sigmas": 8}}' ...]``.
+[--cache] [--records FILE] [--variant '{"name": "adaptive_euro", "params": {"land_sigmas": 8}}' ...]``.
 ``--records`` keeps the recorded taps in FILE (a pickle, read back if it exists): delete it
 when anything before the filter changes.
 """
@@ -23,16 +23,17 @@ from depthtouch.config import FilterConfig
 from depthtouch.evaluation.filterreplay import TrackRecord, record_cases, replay
 from depthtouch.evaluation.halves import placement, select_half
 from depthtouch.evaluation.metrics import summarize
-from depthtouch.evaluation.suite import load_suite
+from depthtouch.evaluation.suite import cache_root, load_suite
 from depthtouch.tracking.filters import make_filter
 
 
-def _records(suite: str, half: str, path: str | None, workers: int | None) -> list[TrackRecord]:
+def _records(suite: str, half: str, path: str | None, workers: int | None,
+             cache: Path | None) -> list[TrackRecord]:
     if path and Path(path).exists():
         with open(path, "rb") as f:
             return list(pickle.load(f))
     cases = select_half(load_suite(suite).select(None), half)
-    records = record_cases(cases, workers=workers)
+    records = record_cases(cases, workers=workers, cache=cache)
     if path:
         Path(path).parent.mkdir(parents=True, exist_ok=True)
         with open(path, "wb") as f:
@@ -60,8 +61,11 @@ def main() -> None:
                     help='a filter as JSON: {"name": ..., "params": {...}} (repeatable)')
     ap.add_argument("--by-placement", action="store_true", help="a row per camera placement")
     ap.add_argument("--workers", type=int)
+    ap.add_argument("--cache", action="store_true",
+                    help="read the recordings from the suite cache (as depthtouch eval --cache)")
     args = ap.parse_args()
-    records = _records(args.suite, args.half, args.records, args.workers)
+    records = _records(args.suite, args.half, args.records, args.workers,
+                       cache_root() if args.cache else None)
     variants = [FilterConfig("none"), FilterConfig()] + [_variant(v) for v in args.variant]
     print(f"{args.suite}, {args.half} half: {len(records)} recordings")
     print(f"{'filter':60s} {'jitter mm':>9s} {'err med':>8s} {'err p95':>8s} {'angle':>6s}")

@@ -96,6 +96,22 @@ def test_a_suite_at_another_frame_rate_keeps_its_cases_tags_and_halves() -> None
     assert fast.cases[0].cache_key() != hard.cases[0].cache_key()
 
 
+def test_a_suite_at_another_resolution_keeps_its_cases_tags_and_halves() -> None:
+    hard = load_suite("hard")
+    big = hard.at_resolution(1.5)
+    assert hard.at_resolution(None) is hard
+    assert [dataclasses.replace(c, resolution_scale=1.0) for c in big.cases] == list(hard.cases)
+    assert [half_of(c) for c in big.cases] == [half_of(c) for c in hard.cases]
+    assert big.select("far") == [dataclasses.replace(c, resolution_scale=1.5)
+                                 for c in hard.select("far")]
+    assert "@x1.5/" in big.cases[0].label and "@x" not in hard.cases[0].label
+    # another resolution is another recording; at its own resolution a case keeps its cache key
+    assert big.cases[0].cache_key() != hard.cases[0].cache_key()
+    assert "resolution_scale" not in hard.cases[0].render_kwargs()
+    with pytest.raises(ConfigError, match="allowed \\[0.25, 3\\]"):
+        hard.at_resolution(4.0)
+
+
 def test_bad_half_is_a_config_error() -> None:
     with pytest.raises(ConfigError, match="use tune, held-out or all"):
         select_half([], "train")
@@ -187,6 +203,9 @@ def test_report_puts_halves_side_by_side_per_situation() -> None:
     (["eval", "--suite", "hard", "--subset", "nope", "--half", "tune"], "has no subset 'nope'"),
     (["eval", "--fps", "60", "x.npz"], "--fps needs --suite NAME"),
     (["eval", "--suite", "hard", "--fps", "500", "--half", "tune"], "fps 500.0 is out of range"),
+    (["eval", "--resolution-scale", "1.5", "x.npz"], "--resolution-scale needs --suite NAME"),
+    (["eval", "--suite", "hard", "--resolution-scale", "9", "--half", "tune"],
+     "resolution scale 9.0 is out of range"),
 ])
 def test_cli_half_errors_are_one_line(argv: list[str], needle: str,
                                       capsys: pytest.CaptureFixture[str]) -> None:

@@ -266,6 +266,7 @@ def test_determinism_per_seed() -> None:
         ({"tilt_deg": 41.0}, "allowed [0, 40] deg"),
         ({"fps": 0.0}, "allowed [1, 120]"),
         ({"seed": -1}, "seed -1 must be an integer >= 0"),
+        ({"resolution_scale": 0.1}, "resolution_scale 0.1 is out of range; allowed [0.25, 3]"),
     ],
 )
 def test_bad_arguments_raise_config_error(kwargs: dict[str, object], message: str) -> None:
@@ -342,3 +343,24 @@ def test_output_depth_stays_in_the_profile_range(camera: str) -> None:
                        fps=6)
     v = rec.depth[rec.depth > 0]
     assert v.min() >= p.min_range_mm and v.max() <= p.max_range_mm
+
+
+def test_a_camera_at_another_resolution_sees_the_same_scene() -> None:
+    """At 1.5 times the resolution (the D435's 848x480 -> 1272x720) the frames are 1.5 times
+    larger, the field of view and the scene are the same: each contact lies at the same point
+    in the camera frame (within 0.5 mm: the script places hands through the camera's rays) and
+    projects to 1.5 times its pixel, about the pixel centres."""
+    a = render_scene("taps", camera="realsense-d435", seed=3, fps=10, noise=False)
+    b = render_scene("taps", camera="realsense-d435", seed=3, fps=10, noise=False,
+                     resolution_scale=1.5)
+    assert a.depth.shape[1:] == (480, 848) and b.depth.shape[1:] == (720, 1272)
+    assert b.K[0, 0] == pytest.approx(1.5 * a.K[0, 0])
+    ca = [c for f in a.truth["frames"] for c in f["contacts"]]
+    cb = [c for f in b.truth["frames"] for c in f["contacts"]]
+    assert len(ca) == len(cb) > 10
+    for p, q in zip(ca, cb, strict=True):
+        assert (q["X"], q["Y"], q["Z"]) == pytest.approx((p["X"], p["Y"], p["Z"]), abs=0.5)
+        assert q["x"] + 0.5 == pytest.approx(1.5 * (p["x"] + 0.5), abs=0.4)
+        assert q["y"] + 0.5 == pytest.approx(1.5 * (p["y"] + 0.5), abs=0.4)
+    # the surface's depth at the image centre is the same
+    assert abs(float(a.depth[0, 240, 424]) - float(b.depth[0, 360, 636])) <= 2.0

@@ -21,6 +21,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -88,30 +89,44 @@ class _Scales:
         """Nothing to release."""
 
 
-def record_case(case: SuiteCase, config: PipelineConfig | None = None) -> TrackRecord:
-    """Render ``case``, run the pipeline on it with a :class:`FilterTap`, keep what it gave."""
+def record_case(case: SuiteCase, config: PipelineConfig | None = None,
+                cache: Path | None = None) -> TrackRecord:
+    """Run the pipeline on ``case`` with a :class:`FilterTap`, keep what it gave. Without
+    ``cache`` the case is rendered in memory; with it, its recording is read from the cache
+    (rendered and written there first if missing), as ``depthtouch eval --cache`` does."""
     from ..driver import drive
     from ..pipeline import Pipeline
-    from ..sim import render_scene
 
     cfg = config or PipelineConfig()
-    rec = render_scene(case.scene, **case.render_kwargs())
     tap = FilterTap()
     pipeline = Pipeline(cfg, path_filter=tap)
     sink = _Scales(pipeline.surface)
-    drive(ArraySource.of_recording(rec, case.label), pipeline, [sink])
-    return TrackRecord(case, tuple(tap.calls), tuple(sink.events), sink.scale,
-                       truth_from_dict(rec.truth, case.label), cfg.tracking.down_frames)
+    if cache is not None:
+        from ..sources import open_source
+        from .suite import ensure_recording, read_truth
+
+        rec_path, truth_path = ensure_recording(case, cache)
+        truth = read_truth(truth_path)
+        with open_source(rec_path) as src:
+            drive(src, pipeline, [sink])
+    else:
+        from ..sim import render_scene
+
+        rec = render_scene(case.scene, **case.render_kwargs())
+        truth = truth_from_dict(rec.truth, case.label)
+        drive(ArraySource.of_recording(rec, case.label), pipeline, [sink])
+    return TrackRecord(case, tuple(tap.calls), tuple(sink.events), sink.scale, truth,
+                       cfg.tracking.down_frames)
 
 
 def record_cases(cases: Sequence[SuiteCase], config: PipelineConfig | None = None,
-                 workers: int | None = None) -> list[TrackRecord]:
+                 workers: int | None = None, cache: Path | None = None) -> list[TrackRecord]:
     """:func:`record_case` over ``cases``, in ``workers`` processes (default: cores, <= 4)."""
     n = workers or default_workers()
     if n <= 1 or len(cases) <= 1:
-        return [record_case(c, config) for c in cases]
+        return [record_case(c, config, cache) for c in cases]
     with ProcessPoolExecutor(n) as ex:
-        return list(ex.map(record_case, cases, [config] * len(cases)))
+        return list(ex.map(record_case, cases, [config] * len(cases), [cache] * len(cases)))
 
 
 _FROM_POSITION = ("X", "Y", "Z", "sx", "sy")  # event fields computed from the position

@@ -159,10 +159,12 @@ def eval_halves_command(
     cache: Path | None = None,
     progress: Callable[[SuiteCase, EvalResult], None] | None = None,
     fps: float | None = None,
+    resolution_scale: float | None = None,
 ) -> dict[str, Any]:
     """``depthtouch eval --suite NAME --half tune|held-out|all``: :func:`halves_report`
-    (``fps``: every case rendered at this frame rate instead of the suite's)."""
-    s = load_suite(suite).at_fps(fps)
+    (``fps``: every case rendered at this frame rate instead of the suite's;
+    ``resolution_scale``: every camera at this many times its resolution)."""
+    s = load_suite(suite).at_fps(fps).at_resolution(resolution_scale)
     cases = select_half(s.select(subset), half)
     if not cases:
         raise ConfigError(f"suite {s.name} has no {half} cases; give each placement two seeds")
@@ -263,13 +265,14 @@ def print_halves(suite: str | Path, half: str, *, subset: str | None = None,
                  config: PipelineConfig | None = None, workers: int | None = None,
                  cache: Path | None = None, as_json: bool = False,
                  progress: Callable[[SuiteCase, EvalResult], None] | None = None,
-                 fps: float | None = None) -> int:
+                 fps: float | None = None, resolution_scale: float | None = None) -> int:
     """The CLI's ``eval --suite NAME --half H``: print the tables (or JSON); returns 0."""
     import json
     import sys
 
     report = eval_halves_command(suite, half=half, subset=subset, config=config,
-                                 workers=workers, cache=cache, progress=progress, fps=fps)
+                                 workers=workers, cache=cache, progress=progress, fps=fps,
+                                 resolution_scale=resolution_scale)
     if as_json:
         print(json.dumps(report, indent=1))
         return 0

@@ -73,18 +73,26 @@ class SuiteCase:
     fps: float = 30.0
     group: str = ""
     hand: str = "capsule"
+    resolution_scale: float = 1.0
 
     @property
     def label(self) -> str:
         surf = "" if self.surface == "plane" else f"/{self.surface}"
         tilt = f"/tilt{self.tilt_deg:g}" if self.tilt_deg else ""
         hand = "" if self.hand == "capsule" else f"/{self.hand}"
-        return f"{self.scene}/{self.camera}/{self.distance_m:g}m{surf}{tilt}{hand}/s{self.seed}"
+        res = "" if self.resolution_scale == 1.0 else f"@x{self.resolution_scale:g}"
+        return (f"{self.scene}/{self.camera}{res}/{self.distance_m:g}m{surf}{tilt}{hand}"
+                f"/s{self.seed}")
 
     def render_kwargs(self) -> dict[str, Any]:
-        kw = {"camera": self.camera, "distance_m": self.distance_m, "tilt_deg": self.tilt_deg,
-              "surface": self.surface, "seed": self.seed, "fps": self.fps}
-        return kw if self.hand == "capsule" else {**kw, "hand": self.hand}
+        kw: dict[str, Any] = {"camera": self.camera, "distance_m": self.distance_m,
+                              "tilt_deg": self.tilt_deg, "surface": self.surface,
+                              "seed": self.seed, "fps": self.fps}
+        if self.hand != "capsule":
+            kw["hand"] = self.hand
+        if self.resolution_scale != 1.0:  # (absent at 1: the cache keys stay as they were)
+            kw["resolution_scale"] = self.resolution_scale
+        return kw
 
     def cache_key(self) -> str:
         """Hash of the scene parameters, the package version and the simulator source."""
@@ -123,6 +131,17 @@ class Suite:
 
         check_render_args(fps, 0)
         moved = {c: dataclasses.replace(c, fps=float(fps)) for c in self.cases}
+        return Suite(self.name, self.gate_mm, tuple(dict.fromkeys(moved.values())),
+                     {moved[c]: t for c, t in self.tags.items()})
+
+    def at_resolution(self, scale: float | None) -> Suite:
+        """The same cases seen by their cameras at ``scale`` times the resolution, with the same
+        field of view ([0.25, 3]; None: this suite). Halves stay the same."""
+        if scale is None:
+            return self
+        if not 0.25 <= scale <= 3.0:
+            raise ConfigError(f"resolution scale {scale!r} is out of range; allowed [0.25, 3]")
+        moved = {c: dataclasses.replace(c, resolution_scale=float(scale)) for c in self.cases}
         return Suite(self.name, self.gate_mm, tuple(dict.fromkeys(moved.values())),
                      {moved[c]: t for c, t in self.tags.items()})
 
@@ -503,13 +522,15 @@ def eval_suite_command(
     cache: Path | None = None,
     progress: Callable[[SuiteCase, EvalResult], None] | None = None,
     fps: float | None = None,
+    resolution_scale: float | None = None,
 ) -> dict[str, Metrics]:
     """``depthtouch eval --suite NAME``: metrics pooled by ``by``, plus ``all`` at the end.
 
     cache: keep the rendered recordings in this folder (None: render in memory only).
     fps: render every case at this frame rate (None: the suite's own, 30 fps).
+    resolution_scale: every camera at this many times its resolution (None: its own).
     """
-    s = load_suite(suite).at_fps(fps)
+    s = load_suite(suite).at_fps(fps).at_resolution(resolution_scale)
     cases = s.select(subset)
     results = run_cases(cases, config, gate_mm=s.gate_mm, workers=workers or default_workers(),
                         cache=cache, progress=progress)

@@ -154,6 +154,21 @@ HARD_CAMERAS: tuple[str, ...] = tuple(HARD_PROFILES)
 PROFILES.update(HARD_PROFILES)
 
 
+def scaled_profile(profile: CameraProfile, scale: float) -> CameraProfile:
+    """The same camera at ``scale`` times its resolution (the same field of view): image size
+    and focal lengths scaled, the principal point kept at the same place in the image. The
+    per-pixel artefacts (matching window, edge fattening, correlation length) stay in the
+    sensor's pixels; stereo and structured-light depth noise follows the focal length."""
+    if scale == 1.0:
+        return profile
+    w, h = profile.resolution_wh
+    return replace(
+        profile, resolution_wh=(max(1, round(w * scale)), max(1, round(h * scale))),
+        fx_px=profile.fx_px * scale, fy_px=profile.fy_px * scale,
+        cx_px=(profile.cx_px + 0.5) * scale - 0.5, cy_px=(profile.cy_px + 0.5) * scale - 0.5,
+    )
+
+
 def get_profile(name: str) -> CameraProfile:
     """The profile called ``name``; ConfigError listing the valid names otherwise."""
     try:
