@@ -62,3 +62,18 @@ def test_a_different_filter_moves_the_replayed_points(record):
     raw = replay_events(record, make_filter("none"))
     diff = [abs(a.x - b.x) + abs(a.y - b.y) for a, b in zip(smooth, raw, strict=True)]
     assert max(diff) > 0.5
+
+
+def test_a_record_from_the_suite_cache_is_the_rendered_one(record, tmp_path):
+    """``record_case(..., cache=)`` reads the recording the cache holds (writing it there
+    first): the same calls to the filter and the same events as a case rendered in memory."""
+    cached = record_case(CASE, cache=tmp_path)
+    assert any(p.suffix == ".npz" for p in (tmp_path / "suite").iterdir())
+    assert [c[0] for c in cached.calls] == [c[0] for c in record.calls]
+    for a, b in zip(cached.calls, record.calls, strict=True):
+        if a[0] == "update":
+            assert a[1] == b[1]
+            np.testing.assert_array_equal(a[2], b[2])
+            np.testing.assert_allclose(a[3], b[3], rtol=0, atol=1e-9)
+    assert [(e.frame, e.id, e.state) for e in cached.events] == [
+        (e.frame, e.id, e.state) for e in record.events]
