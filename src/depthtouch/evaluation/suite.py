@@ -130,9 +130,7 @@ class Suite:
         from ..sim.render import check_render_args
 
         check_render_args(fps, 0)
-        moved = {c: dataclasses.replace(c, fps=float(fps)) for c in self.cases}
-        return Suite(self.name, self.gate_mm, tuple(dict.fromkeys(moved.values())),
-                     {moved[c]: t for c, t in self.tags.items()})
+        return self._with(fps=float(fps))
 
     def at_resolution(self, scale: float | None) -> Suite:
         """The same cases seen by their cameras at ``scale`` times the resolution, with the same
@@ -141,7 +139,11 @@ class Suite:
             return self
         if not 0.25 <= scale <= 3.0:
             raise ConfigError(f"resolution scale {scale!r} is out of range; allowed [0.25, 3]")
-        moved = {c: dataclasses.replace(c, resolution_scale=float(scale)) for c in self.cases}
+        return self._with(resolution_scale=float(scale))
+
+    def _with(self, **changes: Any) -> Suite:
+        """Every case with these render settings changed; tags and order kept."""
+        moved = {c: dataclasses.replace(c, **changes) for c in self.cases}
         return Suite(self.name, self.gate_mm, tuple(dict.fromkeys(moved.values())),
                      {moved[c]: t for c, t in self.tags.items()})
 
