@@ -70,9 +70,10 @@ def _line(row: np.ndarray, c: np.ndarray, w: np.ndarray, hb: int) -> tuple[float
 @numba.njit(cache=True, nogil=True)
 def _landing(row: np.ndarray, c: np.ndarray, prm: np.ndarray, hb: int, x: float, y: float,
              ex: float, ey: float, t: float, sd: float, medx: float, medy: float, locked: bool,
-             reland: bool) -> tuple[float, float]:
+             reland: bool, j: np.ndarray, w: np.ndarray) -> tuple[float, float]:
     """One touch's landing and re-landing (``AdaptiveEuroFilter._landing``): keeps the
-    measurement in the ring, updates the fields, returns the output."""
+    measurement in the ring, updates the fields, returns the output. ``j``, ``w``: scratch
+    arrays of the ring's length (the frame's, reused touch by touch)."""
     cnt = row[c[_NZ]]  # measurements so far, this one included
     k = int((cnt - 1.0) % hb)
     row[c[_HX] + k], row[c[_HY] + k], row[c[_HT] + k] = x, y, t
@@ -81,11 +82,10 @@ def _landing(row: np.ndarray, c: np.ndarray, prm: np.ndarray, hb: int, x: float,
     if not (land or reland):  # only the ring is kept (read if the touch lands again)
         return ex, ey
     # the measurement index each slot holds (the newest with that remainder)
-    j = np.empty(hb)
     for m in range(hb):
         j[m] = (cnt - 1.0) - ((k - m) % hb)
+        w[m] = 0.0
     ls = row[c[_LS]]
-    w = np.zeros(hb)
     kc = prm[_RESTART_FRAMES]
     if kc >= 2.0 and land and ls == 0.0 and cnt >= 2.0 * kc:
         # flat last medians that sit apart from the ones before: start again from them, once
@@ -160,6 +160,7 @@ def euro_step(s: np.ndarray, xy: np.ndarray, dt_s: np.ndarray, prm: np.ndarray,
     lock_frames = max(prm[_LOCK_FRAMES], 2.0)  # a line needs two points
     frames = max(lock_frames, prm[_LAND_FRAMES])  # the sums' horizon (the landing reads them)
     keep = 1.0 - 1.0 / frames
+    ring_j, ring_w = np.empty(hb), np.empty(hb)  # the landing's scratch, reused touch by touch
     for i in range(s.shape[0]):
         row = s[i]
         x, y, dt = xy[i, 0], xy[i, 1], dt_s[i]
@@ -223,7 +224,7 @@ def euro_step(s: np.ndarray, xy: np.ndarray, dt_s: np.ndarray, prm: np.ndarray,
         locked = n > 0.0
         if land_on:
             ex, ey = _landing(row, c, prm, hb, x, y, ex, ey, row[2] + dt, sd, medx, medy,
-                              locked, reland and row[c[_MV]] > 0.0 and not locked)
+                              locked, reland and row[c[_MV]] > 0.0 and not locked, ring_j, ring_w)
         # the lock holds while the median of the last three stays within its radius; its mean
         # is fed only by measurements within twice the radius
         mx, my, r2 = row[c[_M]], row[c[_M] + 1], row[c[_R2]]
