@@ -280,6 +280,28 @@ def test_a_higher_tl_moves_the_reported_contact_forward_along_the_finger(bounds)
     np.testing.assert_array_equal(tl_shift_px(xy, hand, high, 0.0), xy)
 
 
+def test_a_constant_shift_moves_the_reported_contact_forward_at_the_floor_too(bounds):
+    """tip_shift_mm: 1.5 mm away from the hand wherever the hand's direction is known, Tl at
+    its floor or not (the Tl shift adds to it); nothing without a hand direction."""
+    from dataclasses import replace
+
+    from depthtouch.touch.points import tl_above_floor_mm, tl_offset_px
+
+    xy = np.array([[320.0, 240.0], [100.0, 100.0]])
+    hand = np.array([[300.0, 240.0], [100.0, 130.0]])  # hands behind: to the left, below
+    floor = replace(bounds, tl_mm=np.full_like(bounds.tl_mm, 4.0), tl_around_mm=None,
+                    tl_floor_mm=4.0)
+    mm = floor.mm_per_px
+    got = tl_offset_px(xy, hand, tl_above_floor_mm(xy, floor), mm, 0.4, 1.5)
+    np.testing.assert_allclose(got, [[1.5 / mm, 0.0], [0.0, -1.5 / mm]])
+    high = replace(floor, tl_mm=np.full_like(bounds.tl_mm, 9.0))  # 5 mm above: 2 mm more
+    got = tl_offset_px(xy, hand, tl_above_floor_mm(xy, high), mm, 0.4, 1.5)
+    np.testing.assert_allclose(got, [[3.5 / mm, 0.0], [0.0, -3.5 / mm]])
+    none = tl_offset_px(xy, np.full_like(hand, np.nan), tl_above_floor_mm(xy, high), mm, 0.4,
+                        1.5)
+    np.testing.assert_array_equal(none, np.zeros((2, 2)))
+
+
 def test_tl_above_its_floor_is_read_around_each_point_and_kept_with_the_points(bounds):
     """tl_above_floor_mm reads Tl's neighbourhood mean at the nearest pixel (clamped to the
     image), less the floor, never below 0; find_touch_points gives it per point, and a subset

@@ -589,3 +589,37 @@ def test_a_points_offset_moves_what_is_reported_not_what_is_tracked() -> None:
     assert u.state == "down"
     assert u.track.xy_px == (100.0, 100.0)
     assert u.track.report_px == (101.5, 99.5)
+
+
+def test_steer_turns_an_offset_part_of_the_way_onto_its_new_direction():
+    """steer: the direction moves ``weight`` of the way and keeps unit length; the offset keeps
+    its length along it; weight 1, a zero offset and a first direction pass through."""
+    d, off = tracking.steer((0.0, 0.0), (3.0, 4.0), 0.2)
+    assert d == pytest.approx((0.6, 0.8)) and off == (3.0, 4.0)
+    d, off = tracking.steer((1.0, 0.0), (0.0, 2.0), 0.2)
+    assert np.hypot(*d) == pytest.approx(1.0)
+    assert np.degrees(np.arctan2(d[1], d[0])) == pytest.approx(np.degrees(np.arctan2(0.2, 0.8)))
+    assert np.hypot(*off) == pytest.approx(2.0) and off[0] / off[1] == pytest.approx(d[0] / d[1])
+    assert tracking.steer((1.0, 0.0), (0.0, 2.0), 1.0) == ((0.0, 1.0), (0.0, 2.0))
+    assert tracking.steer((1.0, 0.0), (0.0, 0.0), 0.2) == ((1.0, 0.0), (0.0, 0.0))
+
+
+@pytest.mark.parametrize(("weight", "swing_max_deg"), [(1.0, 10.0), (0.2, 3.0)])
+def test_a_still_fingers_reported_offset_follows_a_smoothed_direction(weight, swing_max_deg):
+    """A still tip whose hand direction swings +-10 degrees from frame to frame: with
+    report_dir_weight 1 the reported offset swings with it; with 0.2 its direction swings
+    under 3 degrees (and its length stays the offset's)."""
+    tr = Tracker(_cfg(report_dir_weight=weight), TouchPointConfig())
+    angles = []
+    for k in range(40):
+        a = np.radians(10.0 if k % 2 else -10.0)
+        off = np.array([[2.0 * np.cos(a), 2.0 * np.sin(a)]])
+        p = TouchPoints(np.array([[100.0, 100.0]]), np.array([5.0]), np.array([50]),
+                        np.array([[40.0, 100.0]]), offset_px=off)
+        ups = tr.update(p)
+        if k >= 20:  # past the first frames' transient
+            t = ups[0].track
+            angles.append(np.degrees(np.arctan2(t.offset_px[1], t.offset_px[0])))
+            assert np.hypot(*t.offset_px) == pytest.approx(2.0)
+    swing = max(angles) - min(angles)
+    assert swing == pytest.approx(20.0, abs=1e-6) if weight == 1.0 else swing < swing_max_deg

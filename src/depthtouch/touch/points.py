@@ -80,8 +80,9 @@ def find_touch_points(
     if config.method == "extremity":
         xy = foot_px(xy, b, config.tip_axis_mm)
     above = tl_above_floor_mm(xy, b)
-    if config.method == "extremity" and config.tip_tl_shift > 0:
-        offset = tl_offset_px(xy, out.hand_xy_px, above, b.mm_per_px, config.tip_tl_shift)
+    if config.method == "extremity" and (config.tip_tl_shift > 0 or config.tip_shift_mm > 0):
+        offset = tl_offset_px(xy, out.hand_xy_px, above, b.mm_per_px, config.tip_tl_shift,
+                              config.tip_shift_mm)
     return TouchPoints(xy, out.height_mm, out.area_px, out.hand_xy_px, out.hand_at_border,
                        out.attach_px, out.attach_height_mm, out.back_spread_mm, offset,
                        core_heights_mm(depth, xy, b), above)
@@ -125,21 +126,23 @@ def tl_above_floor_mm(xy_px: np.ndarray, bounds: BandBounds) -> np.ndarray:
 
 
 def tl_offset_px(xy_px: np.ndarray, hand_xy_px: np.ndarray, above_mm: np.ndarray,
-                 mm_per_px: float, per_mm: float) -> np.ndarray:
+                 mm_per_px: float, per_mm: float, const_mm: float = 0.0) -> np.ndarray:
     """How far (px) to move each point forward along its finger, away from its hand: ``per_mm``
     times ``above_mm``, the amount by which Tl around it exceeds its floor
-    (:func:`tl_above_floor_mm`), in mm on the surface (pure, float64 (N, 2)).
+    (:func:`tl_above_floor_mm`), plus ``const_mm``, in mm on the surface (pure, float64
+    (N, 2)).
 
     Where the depth is noisy, Tl rises above its floor (to k σ) and more of the tip's front
     stays out of the band and out of the grown tip cap: the extremity is found behind the
     contact, by 1.4-1.5 mm at the floor and 0.2-0.4 mm more per mm of Tl above it on stereo and
     structured light, and not at all on ToF at the floor (hard suite, tune half;
     docs/accuracy.md section 7, session 11).
-    At the floor the offset is 0, and so it is for points without a hand direction.
+    At the floor the offset is ``const_mm`` (TouchPointConfig.tip_shift_mm); it is 0 for
+    points without a hand direction.
     """
     xy = np.asarray(xy_px, np.float64).reshape(-1, 2)
     out = np.zeros_like(xy)
-    if per_mm == 0.0:
+    if per_mm == 0.0 and const_mm == 0.0:
         return out
     k = per_mm / mm_per_px
     # a handful of points per frame: plain floats cost less than array calls here
@@ -150,8 +153,8 @@ def tl_offset_px(xy_px: np.ndarray, hand_xy_px: np.ndarray, above_mm: np.ndarray
         n = math.hypot(ux, uy)
         if not n > 1e-6:  # also NaN: no hand direction
             continue
-        if above > 0.0:
-            step = k * above / n
+        if above > 0.0 or const_mm > 0.0:
+            step = (k * max(above, 0.0) + const_mm / mm_per_px) / n
             out[i, 0] = ux * step
             out[i, 1] = uy * step
     return out

@@ -76,6 +76,7 @@ class Track:
     merged: int = 0  # consecutive frames hidden in a neighbour's region
     evidence: float = 0.0  # pending: frames of touch seen, each weighted by how tip-like it was
     offset_px: XY = (0.0, 0.0)
+    offset_dir: XY = (0.0, 0.0)  # the smoothed direction of offset_px (0, 0: none yet)
     core: CoreHistory | None = None  # its finger's core heights (TrackingConfig.lift_core_mm)
 
     @property
@@ -86,6 +87,26 @@ class Track:
         """Where the contact should be this frame (constant velocity per frame)."""
         k = 1 + self.missing
         return (self.pos[0] + self.vel[0] * k, self.pos[1] + self.vel[1] * k)
+
+
+def steer(prev_dir: XY, offset: XY, weight: float) -> tuple[XY, XY]:
+    """(direction, offset): a point's reported offset turned onto its contact's smoothed
+    direction (TrackingConfig.report_dir_weight): ``prev_dir`` moved ``weight`` of the way to
+    the offset's own direction, and the offset's length along it. A contact without a direction
+    yet (``prev_dir`` (0, 0)) takes the offset's; a zero offset, or ``weight`` 1, is returned as
+    it is (pure)."""
+    ox, oy = offset
+    mag = math.hypot(ox, oy)
+    if mag <= 1e-12 or weight >= 1.0:
+        return ((ox / mag, oy / mag) if mag > 1e-12 else prev_dir), offset
+    ux, uy = ox / mag, oy / mag
+    px, py = prev_dir
+    if px != 0.0 or py != 0.0:
+        nx, ny = px + weight * (ux - px), py + weight * (uy - py)
+        nn = math.hypot(nx, ny)
+        if nn > 1e-9:  # (opposite directions cancel: take the new one)
+            ux, uy = nx / nn, ny / nn
+    return (ux, uy), (mag * ux, mag * uy)
 
 
 def _nearest(row: list[float]) -> int:
@@ -195,6 +216,7 @@ class Tracker:
         offset: list[XY] = ([(0.0, 0.0)] * n_p if points.offset_px is None
                             else list(map(tuple, points.offset_px.tolist())))
         lift_mm = self.config.lift_core_mm
+        dir_w = self.config.report_dir_weight
         core = ([math.nan] * n_p if points.core_height_mm is None or lift_mm <= 0
                 else points.core_height_mm.tolist())
         hb = points.hand_at_border
@@ -254,7 +276,7 @@ class Tracker:
                 px, py = ox + sx, oy + sy
                 t.pos = (px, py)
                 t.xy_px = (px / scale, py / scale)
-                t.offset_px = offset[k]
+                t.offset_dir, t.offset_px = steer(t.offset_dir, offset[k], dir_w)
                 t.height_mm = float(h[k])
                 t.hand_at_border = border[k]
                 t.seen += 1
@@ -289,7 +311,7 @@ class Tracker:
                 # neighbour's tip arriving in the region) must not throw the prediction off
                 t.vel = (0.5 * vx + 0.5 * ((px - ox) / m), 0.5 * vy + 0.5 * ((py - oy) / m))
                 t.xy_px, t.pos = xy[j], pos[j]
-                t.offset_px = offset[j]
+                t.offset_dir, t.offset_px = steer(t.offset_dir, offset[j], dir_w)
                 t.height_mm, t.area_px = float(h[j]), int(area[j])
                 t.hand_at_border = border[j]
                 t.seen += 1
