@@ -300,6 +300,9 @@ def test_a_constant_shift_moves_the_reported_contact_forward_at_the_floor_too(bo
     none = tl_offset_px(xy, np.full_like(hand, np.nan), tl_above_floor_mm(xy, high), mm, 0.4,
                         1.5)
     np.testing.assert_array_equal(none, np.zeros((2, 2)))
+    # Tl unknown around a point (NaN): the constant shift alone
+    got = tl_offset_px(xy, hand, np.array([np.nan, np.nan]), mm, 0.4, 1.5)
+    np.testing.assert_allclose(got, [[1.5 / mm, 0.0], [0.0, -1.5 / mm]])
 
 
 def test_tl_above_its_floor_is_read_around_each_point_and_kept_with_the_points(bounds):

@@ -153,8 +153,9 @@ def tl_offset_px(xy_px: np.ndarray, hand_xy_px: np.ndarray, above_mm: np.ndarray
         n = math.hypot(ux, uy)
         if not n > 1e-6:  # also NaN: no hand direction
             continue
+        above = above if above > 0.0 else 0.0  # (NaN, unknown: no Tl shift)
         if above > 0.0 or const_mm > 0.0:
-            step = (k * max(above, 0.0) + const_mm / mm_per_px) / n
+            step = (k * above + const_mm / mm_per_px) / n
             out[i, 0] = ux * step
             out[i, 1] = uy * step
     return out
