@@ -464,7 +464,9 @@ def valid_configs(draw: st.DrawFn) -> PipelineConfig:
             elif isinstance(default, float) and draw(st.booleans()):
                 table[key] = draw(st.floats(0.5, 1.5)) * default
             elif isinstance(default, int) and draw(st.booleans()):
-                table[key] = draw(st.integers(max(default - 1, 1), default + 1))
+                # odd sizes (kernels with a centre pixel) stay odd; the rest move by one
+                step = 2 if default % 2 else 1
+                table[key] = max(default + step * draw(st.integers(-1, 1)), 1)
         doc[section] = table
     doc["filter"] = {"name": draw(st.text(max_size=8)),
                      "params": draw(st.dictionaries(st.text(max_size=6),
