@@ -250,3 +250,21 @@ def test_hover_check_set_is_the_approach_scene_at_tof_range_with_both_hands() ->
         assert len(mine) == 20
         assert {c.group for c in select_half(mine, "tune")} == {
             c.group for c in select_half(mine, "held-out")}
+
+
+def test_cylinder_check_set_is_new_strokes_on_the_concave_cylinder_with_both_hands() -> None:
+    """hard-cylinder: strokes on the concave cylinder (stereo 0.9 m), 12 anatomic and 6 capsule
+    seeds that no suite with that placement uses, each hand on both halves."""
+    cases = load_suite("hard-cylinder").cases
+    assert len(cases) == 18
+    assert {(c.scene, c.camera, c.distance_m, c.surface) for c in cases} == {
+        ("strokes", "realsense-d435-hard", 0.9, "cylinder-concave")}
+    same_place = [c for n in ("hard", "hard-fresh", "hard-extra", "hard-fresh2", "hard-fresh3",
+                              "hard-fresh3-capsule", "default")
+                  for c in load_suite(n).cases if c.surface == "cylinder-concave"]
+    assert same_place  # the placement is the one hard and hard-fresh3 use
+    assert not {c.seed for c in cases} & {c.seed for c in same_place}
+    for hand, n in (("anatomic", 12), ("capsule", 6)):
+        mine = [c for c in cases if c.hand == hand]
+        assert len(mine) == n
+        assert select_half(mine, "tune") and select_half(mine, "held-out")
