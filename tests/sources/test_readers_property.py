@@ -464,7 +464,7 @@ def valid_configs(draw: st.DrawFn) -> PipelineConfig:
             elif isinstance(default, float) and draw(st.booleans()):
                 table[key] = draw(st.floats(0.5, 1.5)) * default
             elif isinstance(default, int) and draw(st.booleans()):
-                # odd sizes (kernels with a centre pixel) stay odd; the rest move by one
+                # odd defaults move by two and stay odd (kernel sizes need a centre pixel)
                 step = 2 if default % 2 else 1
                 table[key] = max(default + step * draw(st.integers(-1, 1)), 1)
         doc[section] = table
