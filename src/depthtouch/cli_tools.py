@@ -60,7 +60,8 @@ def _add_eval(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--workers", type=int, help="processes for a suite (default: cores, <= 4)")
     p.add_argument("--cache", action="store_true",
                    help="keep the suite's recordings in .cache/depthtouch/suite (or "
-                        "$DEPTHTOUCH_CACHE) and reuse them")
+                        "$DEPTHTOUCH_CACHE) and reuse them; the least recently used go past "
+                        "$DEPTHTOUCH_CACHE_MAX_GB (default 50, 0: no limit)")
     p.add_argument("--half", choices=("tune", "held-out", "all"),
                    help="with --suite: the tune or held-out half (or all), both side by side")
     p.add_argument("--fps", type=float,

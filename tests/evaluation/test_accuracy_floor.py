@@ -111,9 +111,10 @@ def test_recording_is_rendered_once_and_cached(tmp_path: Path) -> None:
     rec, truth = ensure_recording(case, tmp_path)
     assert rec.is_file() and truth.is_file()
     assert (rec, truth) == recording_paths(case, tmp_path)
-    mtime = rec.stat().st_mtime_ns
+    ino, mtime = rec.stat().st_ino, rec.stat().st_mtime_ns
     assert ensure_recording(case, tmp_path) == (rec, truth)
-    assert rec.stat().st_mtime_ns == mtime
+    # not written again (a new recording is renamed into place: another inode), marked used
+    assert rec.stat().st_ino == ino and rec.stat().st_mtime_ns >= mtime
 
 
 # --- floors --------------------------------------------------------------------------------------

@@ -24,7 +24,9 @@ rendering costs 1-3 s of CPU per recording, less than reading a compressed cache
 --suite default --cache``) the recordings and truths are kept under ``<cache>/suite/``
 (``.cache/depthtouch`` unless ``DEPTHTOUCH_CACHE`` is set), keyed by a hash of the case
 parameters, the package version and the simulator's source (a changed simulator renders again),
-for replaying them with other tools. Nothing here is committed but the suite file.
+for replaying them with other tools; the least recently used go when the folder passes
+``$DEPTHTOUCH_CACHE_MAX_GB`` (50 GB; :mod:`depthtouch.evaluation.cachesize`). Nothing here is
+committed but the suite file.
 """
 
 from __future__ import annotations
@@ -46,6 +48,7 @@ from ..config import PipelineConfig
 from ..errors import ConfigError
 from ..sources.base import ArraySource, DepthSource
 from ..types import FrameResult, TouchEvent
+from .cachesize import cache_limit_bytes, mark_used, prune
 from .metrics import GATE_MM, EvalResult, Metrics, Truth, evaluate, read_truth, summarize
 
 if sys.version_info >= (3, 11):
@@ -295,7 +298,9 @@ def recording_paths(case: SuiteCase, cache: Path | None = None) -> tuple[Path, P
 def ensure_recording(case: SuiteCase, cache: Path | None = None) -> tuple[Path, Path]:
     """Render the case unless it is cached; returns (recording .npz, truth .json)."""
     rec_path, truth_path = recording_paths(case, cache)
+    limit = cache_limit_bytes()  # a malformed limit fails before anything is rendered
     if rec_path.is_file() and truth_path.is_file():
+        mark_used(rec_path)
         return rec_path, truth_path
     from ..sim import render_scene, write_recording
 
@@ -309,6 +314,8 @@ def ensure_recording(case: SuiteCase, cache: Path | None = None) -> tuple[Path, 
         os.replace(part, rec_path)
     finally:
         part.unlink(missing_ok=True)
+    if limit is not None:  # the least recently used recordings go (evaluation/cachesize.py)
+        prune(rec_path.parent, limit, keep=rec_path)
     return rec_path, truth_path
 
 
