@@ -256,6 +256,10 @@ def _add_sim(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--fps", type=float, default=30.0, help="frame rate, Hz [1, 120]")
     p.add_argument("--resolution-scale", type=float, default=1.0, metavar="S",
                    help="the camera at S times its resolution, same field of view [0.25, 3]")
+    p.add_argument("--pitch", type=float, metavar="DEG",
+                   help="every lead finger at DEG to the surface [10, 85] instead of the "
+                        "scene's random pitch (20-70 for most); the rest of the seed's scene "
+                        "stays the same")
     p.add_argument("--no-noise", action="store_true", help="exact geometry, no sensor noise")
     p.add_argument("--views", type=int, metavar="N",
                    help="N cameras (2-3) 0.8 m apart: --out is a folder of viewK.npz, "
@@ -270,6 +274,8 @@ def _add_sim(sub: argparse._SubParsersAction) -> None:
         if a.views is not None and a.resolution_scale != 1.0:
             raise ConfigError("--resolution-scale applies to one camera; leave it out with "
                               "--views")
+        if a.views is not None and a.pitch is not None:
+            raise ConfigError("--pitch applies to one camera; leave it out with --views")
         if a.views is not None:
             from .sim.multiview import default_poses, render_views, write_views
 
@@ -284,7 +290,7 @@ def _add_sim(sub: argparse._SubParsersAction) -> None:
         rec = render_scene(
             a.scene, camera=a.camera, distance_m=a.distance, tilt_deg=a.tilt,
             surface=a.surface, seed=a.seed, fps=a.fps, noise=not a.no_noise, hand=a.hand,
-            resolution_scale=a.resolution_scale,
+            resolution_scale=a.resolution_scale, pitch_deg=a.pitch,
         )
         write_recording(rec, a.out, a.truth)
         if not a.quiet:

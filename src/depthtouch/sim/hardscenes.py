@@ -68,8 +68,8 @@ def approach_tap(tr: Track, rng: np.random.Generator, st: np.ndarray,
     return tr.to(0.2, gap=UP_MM, **others)
 
 
-def _pitch(rng: np.random.Generator) -> float:
-    return float(rng.uniform(25.0, 65.0))
+def _pitch(ctx: SceneContext) -> float:
+    return ctx.pitch(25.0, 65.0)
 
 
 def _far_from(ctx: SceneContext, centre: np.ndarray, lo_mm: float, hi_mm: float,
@@ -85,7 +85,7 @@ def _far_from(ctx: SceneContext, centre: np.ndarray, lo_mm: float, hi_mm: float,
 
 def scene_approach(ctx: SceneContext) -> Script:
     rng = ctx.rng
-    yaw, pitch = free_yaw(ctx), _pitch(rng)
+    yaw, pitch = free_yaw(ctx), _pitch(ctx)
     spots = [ctx.spot(0.2, 0.8) for _ in range(4)]
     tr = ctx.enter(spots[0], yaw, pitch, EMPTY_S)
     for st in spots:
@@ -150,7 +150,7 @@ def scene_rest(ctx: SceneContext) -> Script:
         return (along < 60.0 and across < 70.0) or float(np.linalg.norm(rel)) < 75.0
 
     spots = [_far_from(ctx, palm, 75.0, 170.0, on_arm) for _ in range(4)]
-    tr = ctx.enter(spots[0], free_yaw(ctx), _pitch(rng), t_in + 0.8)
+    tr = ctx.enter(spots[0], free_yaw(ctx), _pitch(ctx), t_in + 0.8)
     for st in spots:
         approach_tap(tr, rng, st)
     ctx.leave(tr)
@@ -168,7 +168,7 @@ def scene_handled(ctx: SceneContext) -> Script:
     s = ctx.surface
     size = np.array([rng.uniform(120, 180), rng.uniform(60, 90), rng.uniform(15, 40)])
     centre = ctx.spot(0.35, 0.65)
-    yaw, pitch = free_yaw(ctx), float(rng.uniform(40.0, 65.0))
+    yaw, pitch = free_yaw(ctx), ctx.pitch(40.0, 65.0)
     lat, fwd = lateral_forward_st(yaw, 1)
     ang = math.atan2(float(fwd[1]), float(fwd[0]))  # the box's long side across the hand
     e1_st = np.array([math.cos(ang), math.sin(ang)])
@@ -217,7 +217,7 @@ def scene_handled(ctx: SceneContext) -> Script:
 
 def _strokes(ctx: SceneContext, n: int, v_lo: float, v_hi: float, zigzag: bool) -> Script:
     rng = ctx.rng
-    yaw, pitch = free_yaw(ctx), _pitch(rng)
+    yaw, pitch = free_yaw(ctx), _pitch(ctx)
     size = min(0.35 * ctx.mm_per_frac(), 300.0)
     tr: Track | None = None
     for k in range(n):
@@ -253,7 +253,7 @@ def scene_strokes(ctx: SceneContext) -> Script:
 
 def scene_warmup(ctx: SceneContext) -> Script:
     rng = ctx.rng
-    tr = ctx.enter(ctx.spot(), free_yaw(ctx), _pitch(rng), EMPTY_S + 0.3)
+    tr = ctx.enter(ctx.spot(), free_yaw(ctx), _pitch(ctx), EMPTY_S + 0.3)
     for st in [ctx.spot(0.2, 0.8) for _ in range(3)]:
         approach_tap(tr, rng, st)
     st = ctx.spot()
@@ -272,7 +272,7 @@ def scene_warmup(ctx: SceneContext) -> Script:
 
 def scene_stillholds(ctx: SceneContext) -> Script:
     rng = ctx.rng
-    tr = ctx.enter(ctx.spot(), free_yaw(ctx), _pitch(rng), EMPTY_S)
+    tr = ctx.enter(ctx.spot(), free_yaw(ctx), _pitch(ctx), EMPTY_S)
     for _ in range(2):
         st = ctx.spot(0.25, 0.75)
         tr.to(0.35, s=float(st[0]), t=float(st[1]), gap=UP_MM)
@@ -292,7 +292,7 @@ def scene_hovergroup(ctx: SceneContext) -> Script:
     fingers = ("index", "middle", "ring")
     offs = _spread(shape, fingers)
     centre = ctx.spot(0.35, 0.65)
-    tr = ctx.enter(centre, free_yaw(ctx), float(rng.uniform(35.0, 60.0)), EMPTY_S, offs)
+    tr = ctx.enter(centre, free_yaw(ctx), ctx.pitch(35.0, 60.0), EMPTY_S, offs)
 
     def hover() -> dict[str, float]:
         return {"gap": float(rng.uniform(5.0, 20.0)),

@@ -103,6 +103,7 @@ def render_scene(
     keep_labels: bool = False,
     hand: str = "capsule",
     resolution_scale: float = 1.0,
+    pitch_deg: float | None = None,
 ) -> SimRecording:
     """Render ``scene`` (see :data:`~depthtouch.sim.SCENES`) as seen by ``camera``.
 
@@ -116,6 +117,9 @@ def render_scene(
     that presses into the surface; :class:`~depthtouch.sim.hand.Anatomy`).
     resolution_scale: the camera at this many times its resolution, same field of view,
     [0.25, 3] (default 1: 848x480 for the D435 profiles; 1.5 gives 1272x720).
+    pitch_deg: every lead finger at this angle to the surface, [10, 85] deg, instead of the
+    scene's random pitch (20-70 deg for most scenes); the seed's spots, timings and hand sizes
+    stay as they were (default None: drawn).
     Unknown names or out-of-range values raise ConfigError naming the valid ones.
     """
     if not (isinstance(resolution_scale, (int, float)) and 0.25 <= resolution_scale <= 3.0):
@@ -124,13 +128,16 @@ def render_scene(
     profile = scaled_profile(get_profile(camera), float(resolution_scale))
     world_surface = make_surface(surface, distance_m, tilt_deg)
     check_render_args(fps, seed)
+    if pitch_deg is not None and not (isinstance(pitch_deg, (int, float))
+                                      and 10.0 <= pitch_deg <= 85.0):
+        raise ConfigError(f"pitch_deg {pitch_deg!r} is out of range; allowed [10, 85] deg")
     if hand not in HAND_STYLES:
         raise ConfigError(f"unknown hand {hand!r}; use one of {', '.join(HAND_STYLES)}")
     rays = Rays(profile.K, profile.resolution_wh)
     # independent streams for the script and the noise (SeedSequence works on numpy < 1.25)
     scene_rng, noise_rng = (np.random.default_rng(s)
                             for s in np.random.SeedSequence(int(seed)).spawn(2))
-    script = build_script(scene, SceneContext(world_surface, rays, scene_rng, hand))
+    script = build_script(scene, SceneContext(world_surface, rays, scene_rng, hand, pitch_deg))
     n = max(int(round(script.duration_s * fps)), 1)
     w, h = profile.resolution_wh
     depth = np.empty((n, h, w), np.uint16)

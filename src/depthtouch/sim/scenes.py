@@ -36,8 +36,8 @@ def _tap(tr: Track, rng: np.random.Generator, st: np.ndarray) -> Track:
     return tr.to(float(rng.uniform(0.12, 0.2)), gap=UP_MM)
 
 
-def _pitch(rng: np.random.Generator) -> float:
-    return float(rng.uniform(20.0, 70.0))
+def _pitch(ctx: SceneContext) -> float:
+    return ctx.pitch(20.0, 70.0)
 
 
 def _yaw(ctx: SceneContext, centre: float = 0.0) -> float:
@@ -47,7 +47,7 @@ def _yaw(ctx: SceneContext, centre: float = 0.0) -> float:
 
 def scene_taps(ctx: SceneContext) -> Script:
     rng = ctx.rng
-    yaw, pitch = _yaw(ctx), _pitch(rng)
+    yaw, pitch = _yaw(ctx), _pitch(ctx)
     spots = [ctx.spot(0.2, 0.8) for _ in range(5)]
     tr = ctx.enter(spots[0], yaw, pitch, EMPTY_S)
     for st in spots:
@@ -73,7 +73,7 @@ def _path(kind: str, rng: np.random.Generator, size_mm: float) -> np.ndarray:
 
 def scene_drags(ctx: SceneContext) -> Script:
     rng = ctx.rng
-    yaw, pitch = _yaw(ctx), _pitch(rng)
+    yaw, pitch = _yaw(ctx), _pitch(ctx)
     size = min(0.3 * ctx.mm_per_frac(), 280.0)
     kinds = [("line", 0.05, 0.3), ("circle", 0.2, 0.5), ("zigzag", 0.3, 1.0), ("line", 0.5, 1.0)]
     tr: Track | None = None
@@ -106,7 +106,7 @@ def _multi_hand(ctx: SceneContext, side: int, fingers: tuple[str, ...], t0: floa
     rng = ctx.rng
     shape = ctx.hand(side)
     offs = _spread(shape, fingers)
-    tr = ctx.enter(centre, yaw, float(rng.uniform(35.0, 60.0)), t0, offs)
+    tr = ctx.enter(centre, yaw, ctx.pitch(35.0, 60.0), t0, offs)
     tr.hold(max(t_down - tr.end_s, 0.01))
     gaps = {f + ".gap": 0.0 for f in fingers[1:]}
     # fingers land a few frames apart, like real hands
@@ -146,7 +146,7 @@ def scene_pinch(ctx: SceneContext) -> Script:
                 * shape.side, "thumb.df": -0.83 * dist}
 
     open_mm, closed_mm = float(rng.uniform(80.0, 110.0)), float(rng.uniform(22.0, 32.0))
-    tr = ctx.enter(centre - e * open_mm / 2, yaw, float(rng.uniform(35.0, 55.0)), EMPTY_S,
+    tr = ctx.enter(centre - e * open_mm / 2, yaw, ctx.pitch(35.0, 55.0), EMPTY_S,
                    {"thumb": (at(open_mm)["thumb.dl"], at(open_mm)["thumb.df"])})
     for a_mm, b_mm in ((open_mm, closed_mm), (closed_mm, open_mm)):
         tr.to(0.3, **at(a_mm))
@@ -169,7 +169,7 @@ def scene_cross(ctx: SceneContext) -> Script:
                             (-1, ctx.base_yaw + 180.0 + jitter[1], -1.0)):
         start = mid + np.array([-sign * span / 2, sign * sep / 2])
         end = mid + np.array([sign * span / 2, sign * sep / 2])
-        tr = ctx.enter(start, yaw, _pitch(rng), EMPTY_S)
+        tr = ctx.enter(start, yaw, _pitch(ctx), EMPTY_S)
         tr.to(0.3, s=float(start[0]), t=float(start[1])).hold(0.2)
         tr.to(0.15, gap=0.0).hold(0.15)
         tr.to(span / (float(rng.uniform(0.15, 0.35)) * 1000.0), s=float(end[0]), t=float(end[1]))
@@ -180,8 +180,7 @@ def scene_cross(ctx: SceneContext) -> Script:
 
 
 def scene_hover(ctx: SceneContext) -> Script:
-    rng = ctx.rng
-    tr = ctx.enter(ctx.spot(), _yaw(ctx), _pitch(rng), EMPTY_S)
+    tr = ctx.enter(ctx.spot(), _yaw(ctx), _pitch(ctx), EMPTY_S)
     for h in (50.0, 25.0, 10.0):
         st = ctx.spot()
         tr.to(0.4, s=float(st[0]), t=float(st[1]), gap=h).hold(1.0)
@@ -265,7 +264,7 @@ def _passing_body(ctx: SceneContext, t_in: float, dur_s: float) -> Prop:
 
 def scene_distractors(ctx: SceneContext) -> Script:
     rng = ctx.rng
-    yaw, pitch = _yaw(ctx), _pitch(rng)
+    yaw, pitch = _yaw(ctx), _pitch(ctx)
     spots = [ctx.spot(0.2, 0.5) for _ in range(4)]
     tr = ctx.enter(spots[0], yaw, pitch, EMPTY_S)
     for st in spots:
@@ -294,7 +293,7 @@ def scene_object(ctx: SceneContext) -> Script:
     obj_st = ctx.st_at(0.3, 0.4)
     prop = _object(ctx, obj_st if obj_st is not None else ctx.spot(), t_in, t_out)
     spots = [ctx.spot(0.55, 0.8) for _ in range(3)]
-    tr = ctx.enter(spots[0], _yaw(ctx), _pitch(rng), t_in + 0.6)
+    tr = ctx.enter(spots[0], _yaw(ctx), _pitch(ctx), t_in + 0.6)
     for st in spots:
         _tap(tr, rng, st)
     ctx.leave(tr)
@@ -305,7 +304,7 @@ def scene_object(ctx: SceneContext) -> Script:
 
 def scene_drift(ctx: SceneContext) -> Script:
     rng = ctx.rng
-    tr = ctx.enter(ctx.spot(), _yaw(ctx), _pitch(rng), EMPTY_S + 0.5)
+    tr = ctx.enter(ctx.spot(), _yaw(ctx), _pitch(ctx), EMPTY_S + 0.5)
     for st in [ctx.spot(0.2, 0.8) for _ in range(5)]:
         _tap(tr, rng, st)
     ctx.leave(tr)
@@ -321,7 +320,7 @@ def scene_drift(ctx: SceneContext) -> Script:
 
 def scene_bump(ctx: SceneContext) -> Script:
     rng = ctx.rng
-    tr = ctx.enter(ctx.spot(), _yaw(ctx), _pitch(rng), EMPTY_S)
+    tr = ctx.enter(ctx.spot(), _yaw(ctx), _pitch(ctx), EMPTY_S)
     spots = [ctx.spot(0.2, 0.8) for _ in range(5)]
     for st in spots[:2]:
         _tap(tr, rng, st)
@@ -338,9 +337,8 @@ def scene_bump(ctx: SceneContext) -> Script:
 
 
 def scene_hold(ctx: SceneContext) -> Script:
-    rng = ctx.rng
     st = ctx.spot()
-    tr = ctx.enter(st, _yaw(ctx), _pitch(rng), EMPTY_S)
+    tr = ctx.enter(st, _yaw(ctx), _pitch(ctx), EMPTY_S)
     tr.to(0.15, gap=0.0).hold(10.0).to(0.15, gap=UP_MM)
     ctx.leave(tr)
     return Script(tr.end_s + 0.3, hands=[HandTrack(ctx.hand(), ("index",), tr)])
@@ -349,7 +347,7 @@ def scene_hold(ctx: SceneContext) -> Script:
 def scene_presses(ctx: SceneContext) -> Script:
     """Eight one-finger presses held 0.1-1.0 s (shuffled): the tap / long-press boundary."""
     rng = ctx.rng
-    yaw, pitch = _yaw(ctx), _pitch(rng)
+    yaw, pitch = _yaw(ctx), _pitch(ctx)
     holds = rng.permutation(np.linspace(0.1, 1.0, 8)) + rng.uniform(-0.03, 0.03, 8)
     spots = [ctx.spot(0.2, 0.8) for _ in holds]
     tr = ctx.enter(spots[0], yaw, pitch, EMPTY_S)
@@ -396,7 +394,7 @@ def scene_occlude(ctx: SceneContext) -> Script:
     centre = ctx.spot(0.45, 0.55) if centre is None else centre
     start = centre + np.array([-30.0, 0.0])
     tr = ctx.enter(start, ctx.base_yaw + float(rng.uniform(-15.0, 15.0)),
-                   float(rng.uniform(35.0, 60.0)), EMPTY_S)
+                   ctx.pitch(35.0, 60.0), EMPTY_S)
     tr.to(0.15, gap=0.0).hold(0.4)  # down before the arm comes: both cameras see it
     t_in = tr.end_s
     tr.hold(0.8)  # the arm slides in, the finger stays

@@ -103,15 +103,17 @@ class Script:
 
 
 class SceneContext:
-    """What a scene script needs: the world surface, the camera rays, a generator, and which
-    hand model its hands are (:data:`~depthtouch.sim.hand.HAND_STYLES`)."""
+    """What a scene script needs: the world surface, the camera rays, a generator, which hand
+    model its hands are (:data:`~depthtouch.sim.hand.HAND_STYLES`), and a finger pitch that
+    replaces the scenes' random ones (None: drawn; see :meth:`pitch`)."""
 
     def __init__(self, surface: Surface, rays: Rays, rng: np.random.Generator,
-                 hand_style: str = "capsule") -> None:
+                 hand_style: str = "capsule", pitch_deg: float | None = None) -> None:
         self.surface = surface
         self.rays = rays
         self.rng = rng
         self.hand_style = hand_style
+        self.pitch_deg = pitch_deg
         self.base_yaw = self._base_yaw()
 
     def _base_yaw(self) -> float:
@@ -124,6 +126,13 @@ class SceneContext:
         if math.hypot(cs, ct) < math.sin(math.radians(12.0)):
             return 0.0
         return math.degrees(math.atan2(cs, -ct))
+
+    def pitch(self, lo_deg: float, hi_deg: float) -> float:
+        """A lead finger's pitch (deg): drawn uniformly in [lo_deg, hi_deg], or ``pitch_deg``
+        when set. The draw is made either way, so a fixed pitch leaves every other part of a
+        seed's scene (spots, timings, hand sizes) as it was."""
+        drawn = float(self.rng.uniform(lo_deg, hi_deg))
+        return drawn if self.pitch_deg is None else float(self.pitch_deg)
 
     def st_at(self, fx: float, fy: float) -> np.ndarray | None:
         """Surface coordinates seen at the image point (fx * W, fy * H); None if off-surface."""
