@@ -268,3 +268,41 @@ def test_cylinder_check_set_is_new_strokes_on_the_concave_cylinder_with_both_han
         mine = [c for c in cases if c.hand == hand]
         assert len(mine) == n
         assert select_half(mine, "tune") and select_half(mine, "held-out")
+
+
+def test_steep_check_set_fixes_the_pitch_on_fresh_seeds_and_both_halves() -> None:
+    """steep: taps and approaches at 60 and 70 deg, both hands, four placements, seeds no
+    other suite uses; a seed's two pitches share a half (the same spots and timings)."""
+    cases = load_suite("steep").cases
+    assert len(cases) == 128
+    assert {c.pitch_deg for c in cases} == {60.0, 70.0}
+    assert {c.scene for c in cases} == {"taps", "approach"}
+    assert {c.hand for c in cases} == {"capsule", "anatomic"}
+    used = {c.seed for n in ("default", "hard", "hard-fresh", "hard-extra", "hard-fresh2",
+                             "hard-fresh3", "hard-fresh3-capsule", "hover-tof", "hard-cylinder")
+            for c in load_suite(n).cases}
+    assert not {c.seed for c in cases} & used
+    for c in cases:
+        twin = dataclasses.replace(c, pitch_deg=130.0 - c.pitch_deg)
+        assert twin in cases and half_of(twin) == half_of(c)
+    for p in {placement(c) for c in cases}:
+        mine = [c for c in cases if placement(c) == p]
+        assert select_half(mine, "tune") and select_half(mine, "held-out")
+
+
+def test_suite_pitches_key_multiplies_cases_labels_and_renders_them() -> None:
+    doc = {"group": [{"scenes": ["taps"], "cameras": ["kinect-v2"], "distances_m": [1.0],
+                      "pitches_deg": [50, 65.5], "seeds": [3]}]}
+    cases = suite_from_dict(doc).cases
+    assert [c.label for c in cases] == ["taps/kinect-v2/1m/pitch50/s3",
+                                        "taps/kinect-v2/1m/pitch65.5/s3"]
+    assert [c.render_kwargs()["pitch_deg"] for c in cases] == [50.0, 65.5]
+    assert len({c.cache_key() for c in cases}) == 2
+    without = {k: v for k, v in doc["group"][0].items() if k != "pitches_deg"}
+    drawn = suite_from_dict({"group": [without]}).cases[0]
+    assert drawn.pitch_deg is None and "pitch_deg" not in drawn.render_kwargs()
+    assert drawn.label == "taps/kinect-v2/1m/s3"
+    for bad, needle in (([90], "pitches_deg value 90 is out of range; allowed [10.0, 85.0]"),
+                        ([], "pitches_deg must be a non-empty list")):
+        with pytest.raises(ConfigError, match=needle.replace("[", r"\[").replace("]", r"\]")):
+            suite_from_dict({"group": [{**doc["group"][0], "pitches_deg": bad}]})

@@ -15,6 +15,7 @@ group is a grid of scenes x cameras x distances x surfaces x tilts x hands x see
     surfaces = ["plane"]           # default ["plane"]
     tilts_deg = [0.0]              # default [0.0]
     hands = ["capsule"]            # default ["capsule"]; or "anatomic" (docs/simulator.md)
+    pitches_deg = [60.0]           # optional: every lead finger at this pitch (default: drawn)
     seeds = [1]
     tags = ["quick"]               # optional: subsets a run may select
 
@@ -64,7 +65,8 @@ SURFACES = ("plane", "cylinder-convex", "cylinder-concave")
 class SuiteCase:
     """One recording of the suite: the keywords of :func:`depthtouch.sim.render_scene`.
 
-    distance_m: camera to surface (m); tilt_deg: surface tilt (deg); fps: frame rate (Hz).
+    distance_m: camera to surface (m); tilt_deg: surface tilt (deg); fps: frame rate (Hz);
+    pitch_deg: every lead finger at this angle to the surface (deg), None: the scene's own.
     """
 
     scene: str
@@ -77,6 +79,7 @@ class SuiteCase:
     group: str = ""
     hand: str = "capsule"
     resolution_scale: float = 1.0
+    pitch_deg: float | None = None
 
     @property
     def label(self) -> str:
@@ -84,8 +87,9 @@ class SuiteCase:
         tilt = f"/tilt{self.tilt_deg:g}" if self.tilt_deg else ""
         hand = "" if self.hand == "capsule" else f"/{self.hand}"
         res = "" if self.resolution_scale == 1.0 else f"@x{self.resolution_scale:g}"
+        pitch = "" if self.pitch_deg is None else f"/pitch{self.pitch_deg:g}"
         return (f"{self.scene}/{self.camera}{res}/{self.distance_m:g}m{surf}{tilt}{hand}"
-                f"/s{self.seed}")
+                f"{pitch}/s{self.seed}")
 
     def render_kwargs(self) -> dict[str, Any]:
         kw: dict[str, Any] = {"camera": self.camera, "distance_m": self.distance_m,
@@ -95,6 +99,8 @@ class SuiteCase:
             kw["hand"] = self.hand
         if self.resolution_scale != 1.0:  # (absent at 1: the cache keys stay as they were)
             kw["resolution_scale"] = self.resolution_scale
+        if self.pitch_deg is not None:  # (absent when drawn: the cache keys stay as they were)
+            kw["pitch_deg"] = self.pitch_deg
         return kw
 
     def cache_key(self) -> str:
@@ -216,7 +222,7 @@ def suite_from_dict(data: dict[str, Any], where: str = "suite") -> Suite:
         gname = str(g.get("name", f"group{i}"))
         gw = f"{where}: group {gname}"
         known = {"name", "scenes", "cameras", "distances_m", "surfaces", "tilts_deg", "seeds",
-                 "fps", "tags", "hands"}
+                 "fps", "tags", "hands", "pitches_deg"}
         unknown = sorted(set(g) - known)
         if unknown:
             raise ConfigError(
@@ -228,6 +234,9 @@ def suite_from_dict(data: dict[str, Any], where: str = "suite") -> Suite:
         surfs = _list(g, "surfaces", ["plane"], gw, SURFACES)
         tilts = _numbers(_list(g, "tilts_deg", [0.0], gw), "tilts_deg", gw, 0.0, 80.0)
         hands = _list(g, "hands", ["capsule"], gw, _hand_styles())
+        pitches: list[float | None] = (
+            [None] if "pitches_deg" not in g
+            else list(_numbers(_list(g, "pitches_deg", None, gw), "pitches_deg", gw, 10.0, 85.0)))
         seeds = _list(g, "seeds", [0], gw)
         if any(isinstance(s, bool) or not isinstance(s, int) or s < 0 for s in seeds):
             raise ConfigError(f"{gw}: seeds must be whole numbers >= 0")
@@ -239,8 +248,10 @@ def suite_from_dict(data: dict[str, Any], where: str = "suite") -> Suite:
             for cam in cams:
                 for d in dists:
                     for surf in surfs:
-                        for tilt, hand, seed in itertools.product(tilts, hands, seeds):
-                            c = SuiteCase(s, cam, d, surf, tilt, int(seed), fps, gname, hand)
+                        for tilt, hand, pitch, seed in itertools.product(tilts, hands, pitches,
+                                                                         seeds):
+                            c = SuiteCase(s, cam, d, surf, tilt, int(seed), fps, gname, hand,
+                                          pitch_deg=pitch)
                             key = dataclasses.replace(c, group="")
                             cases.setdefault(key, (c, set()))[1].update(tags)
     ordered = [c for c, _ in cases.values()]
