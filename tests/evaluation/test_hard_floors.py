@@ -91,6 +91,24 @@ HOVER_MAX: dict[str, float] = {
 }
 
 
+# steep (session 31): taps and approaches with the finger at 60 and 70 deg, both hands, held-out
+# half, defaults: recall 0.744 (219 contacts), 0.45 false touches per minute, none from hovers
+# >= 25 mm, no touch down while its finger was >= 25 mm up, error 2.38 / 5.26 mm, 0 id
+# switches, touch-down latency median 2 frames, jitter 0.81 mm. Far short of issue 13's recall:
+# the steep tip's crescent is lost to the opening (docs/accuracy.md, session 31). A regression
+# guard, and a floor to raise.
+STEEP_MIN: dict[str, float] = {"recall_working": 0.72}
+STEEP_MAX: dict[str, float] = {
+    "false_per_min": 0.8,
+    "false_from_hover_25mm": 0,
+    "early_from_hover_25mm": 1,
+    "id_switches": 1,
+    "error_median_mm": 2.6,
+    "error_p95_mm": 5.8,
+    "down_latency_median_frames": 2.0,
+}
+
+
 def _held_out_figures(name: str = "hard") -> dict[str, Any]:
     s = load_suite(name)
     cases = select_half(s.cases, HELD_OUT)
@@ -105,6 +123,7 @@ def _held_out_figures(name: str = "hard") -> dict[str, Any]:
     ("hard", FLOORS_MIN, FLOORS_MAX),
     ("hard-fresh3", FRESH3_MIN, FRESH3_MAX),
     ("hover-tof", HOVER_MIN, HOVER_MAX),
+    ("steep", STEEP_MIN, STEEP_MAX),
 ])
 def test_held_out_half_meets_the_measured_floors(name: str, floors_min: dict[str, float],
                                                  floors_max: dict[str, float]) -> None:
