@@ -14,30 +14,15 @@ from __future__ import annotations
 import argparse
 import itertools
 from collections import defaultdict
-from concurrent.futures import ProcessPoolExecutor
 
-from depthtouch.evaluation.metrics import EvalResult, evaluate, summarize, truth_from_dict
-from depthtouch.evaluation.suite import default_workers, run_source
-from depthtouch.sim import render_scene
-from depthtouch.sources.base import ArraySource
+from depthtouch.evaluation.metrics import EvalResult, summarize
+from depthtouch.evaluation.suite import SuiteCase, default_workers, run_cases
 
 #: (camera profile, distance m, tilt deg): the nominal cameras at 1 m, and two of the hard
 #: suite's placements (stereo 0.95 m, ToF 1.3 m)
 PLACEMENTS = (("realsense-d435", 1.0, 0.0), ("kinect-v2", 1.0, 0.0),
               ("realsense-d435-hard", 0.95, 10.0), ("kinect-v2-hard", 1.3, 0.0))
 HANDS = ("capsule", "anatomic")
-
-_Job = tuple[str, str, float, float, str, float, int]
-
-
-def _one(job: _Job) -> tuple[_Job, EvalResult]:
-    scene, camera, dist, tilt, hand, pitch, seed = job
-    rec = render_scene(scene, camera=camera, distance_m=dist, tilt_deg=tilt, hand=hand,
-                       seed=seed, pitch_deg=pitch)
-    label = f"{scene}/{camera}/{dist:g}m/{hand}/pitch{pitch:g}/s{seed}"
-    events, timing = run_source(ArraySource.of_recording(rec, label), None)
-    return job, evaluate(truth_from_dict(rec.truth, label), events, timing_ms=timing,
-                         label=label)
 
 
 def _row(name: str, results: list[EvalResult]) -> str:
@@ -56,16 +41,16 @@ def main() -> None:
     ap.add_argument("--workers", type=int, default=None)
     a = ap.parse_args()
     pitches = [float(p) for p in a.pitches.split(",")]
-    jobs: list[_Job] = [
-        (scene, cam, dist, tilt, hand, pitch, 1001 + k)
-        for scene, (cam, dist, tilt), hand, pitch, k in itertools.product(
-            a.scenes.split(","), PLACEMENTS, HANDS, pitches, range(a.seeds))]
+    cases = [SuiteCase(scene, cam, dist, tilt_deg=tilt, seed=1001 + k, hand=hand, pitch_deg=pitch)
+             for scene, (cam, dist, tilt), hand, pitch, k in itertools.product(
+                 a.scenes.split(","), PLACEMENTS, HANDS, pitches, range(a.seeds))]
+    # rendered in memory, not cached: the sweep's recordings belong to no suite
+    results = run_cases(cases, workers=a.workers or default_workers())
     by: dict[tuple[str, str, float], list[EvalResult]] = defaultdict(list)
     by_pitch: dict[tuple[str, float], list[EvalResult]] = defaultdict(list)
-    with ProcessPoolExecutor(a.workers or default_workers()) as ex:
-        for (_scene, cam, dist, _tilt, hand, pitch, _seed), res in ex.map(_one, jobs):
-            by[(f"{cam} {dist:g} m", hand, pitch)].append(res)
-            by_pitch[(hand, pitch)].append(res)
+    for c, res in zip(cases, results, strict=True):
+        by[(f"{c.camera} {c.distance_m:g} m", c.hand, c.pitch_deg or 0.0)].append(res)
+        by_pitch[(c.hand, c.pitch_deg or 0.0)].append(res)
     head = ("| {} | contacts seen | hidden | recall | false | from hovers >= 25 mm | "
             "error median mm |\n|---|---|---|---|---|---|---|")
     print(f"scenes {a.scenes}, seeds 1001-{1000 + a.seeds}\n")

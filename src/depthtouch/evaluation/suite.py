@@ -171,6 +171,12 @@ def _hand_styles() -> tuple[str, ...]:
     return HAND_STYLES
 
 
+def _pitch_range() -> tuple[float, float]:
+    from ..sim import PITCH_RANGE_DEG
+
+    return PITCH_RANGE_DEG
+
+
 def _all_default(group: dict[str, Any], key: str, names: list[Any]) -> list[Any]:
     from ..sim import CAMERAS, SCENES
 
@@ -236,7 +242,8 @@ def suite_from_dict(data: dict[str, Any], where: str = "suite") -> Suite:
         hands = _list(g, "hands", ["capsule"], gw, _hand_styles())
         pitches: list[float | None] = (
             [None] if "pitches_deg" not in g
-            else list(_numbers(_list(g, "pitches_deg", None, gw), "pitches_deg", gw, 10.0, 85.0)))
+            else list(_numbers(_list(g, "pitches_deg", None, gw), "pitches_deg", gw,
+                               *_pitch_range())))
         seeds = _list(g, "seeds", [0], gw)
         if any(isinstance(s, bool) or not isinstance(s, int) or s < 0 for s in seeds):
             raise ConfigError(f"{gw}: seeds must be whole numbers >= 0")

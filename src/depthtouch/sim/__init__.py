@@ -14,7 +14,7 @@ from __future__ import annotations
 from .cameras import CAMERAS, HARD_CAMERAS, PROFILES, CameraProfile, get_profile
 from .geometry import SURFACES
 from .hardscenes import HARD_SCENES
-from .render import SimRecording, finger_label, load_truth, render_scene, write_recording
+from .render import PITCH_RANGE_DEG, SimRecording, finger_label, load_truth, render_scene, write_recording
 from .scenes import GESTURE_SCENES, MULTIVIEW_SCENES, SCENES
 
 #: Every scene name the simulator renders (the default suite's "all" is :data:`SCENES` alone).
@@ -27,6 +27,7 @@ __all__ = [
     "HARD_CAMERAS",
     "HARD_SCENES",
     "MULTIVIEW_SCENES",
+    "PITCH_RANGE_DEG",
     "PROFILES",
     "SCENES",
     "SURFACES",

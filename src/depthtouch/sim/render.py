@@ -82,6 +82,10 @@ class _TruthBuilder:
                             "hovers": hovers})
 
 
+#: the fixed finger pitches a scene may be rendered at (deg; render_scene's pitch_deg)
+PITCH_RANGE_DEG = (10.0, 85.0)
+
+
 def check_render_args(fps: float, seed: int) -> None:
     """ConfigError unless fps is in [1, 120] Hz and seed an integer >= 0 (every renderer)."""
     if not (isinstance(fps, (int, float)) and 1.0 <= fps <= 120.0):
@@ -128,9 +132,9 @@ def render_scene(
     profile = scaled_profile(get_profile(camera), float(resolution_scale))
     world_surface = make_surface(surface, distance_m, tilt_deg)
     check_render_args(fps, seed)
-    if pitch_deg is not None and not (isinstance(pitch_deg, (int, float))
-                                      and 10.0 <= pitch_deg <= 85.0):
-        raise ConfigError(f"pitch_deg {pitch_deg!r} is out of range; allowed [10, 85] deg")
+    lo, hi = PITCH_RANGE_DEG
+    if pitch_deg is not None and not (isinstance(pitch_deg, (int, float)) and lo <= pitch_deg <= hi):
+        raise ConfigError(f"pitch_deg {pitch_deg!r} is out of range; allowed [{lo:g}, {hi:g}] deg")
     if hand not in HAND_STYLES:
         raise ConfigError(f"unknown hand {hand!r}; use one of {', '.join(HAND_STYLES)}")
     rays = Rays(profile.K, profile.resolution_wh)
