@@ -5,9 +5,10 @@ of a suite half whose tip the camera sees, the nearest touch point within 20 mm 
 the point plus its forward shift, before tracking and filtering) is compared with the truth,
 in mm on the surface: ``along`` its finger (positive: ahead of the contact, away from the hand;
 the finger's direction is the sensor's own, from the attached hand to the point) and
-``across`` it (positive: to the finger's right as seen in the image, y down). A median far from 0 is a
-bias that the tip model leaves, not noise: the ``anatomic`` hand's points lie 2-4.5 mm behind
-their contacts where the capsule hand's lie within 1 mm (docs/accuracy.md, session 32).
+``across`` it (positive: to the finger's right as seen in the image, y down). A median far
+from 0 is a bias that the tip model leaves, not noise: the ``anatomic`` hand's points lie
+1.7-4.5 mm behind their contacts where the capsule hand's lie within 1 mm (docs/accuracy.md,
+session 32).
 
 Rows: camera profile, hand model and side (the truth's ``hands``).
 
