@@ -362,6 +362,16 @@ class TrackingConfig:
         id switches 11 -> 8, taps merged into the previous touch 5 -> 2, false touches and
         contacts unchanged; 10 and 12 mm added 1-3 false touches (a hover-as-touch ended and
         begun again). No change on the default suite (range [0, 200] mm; 0 turns it off).
+    doubt_frames: a contact that is down goes ``up`` once its point has given no evidence of a
+        touch (weight 0 in evidence_weights: attached like a forearm's edge, the hand behind it
+        too high, level heights behind it, or on another finger's axis) for this many frames
+        in a row; the point starts over as a pending contact. Nothing else ends a contact that
+        came down on the wrong thing while it stays in the band: on hard-fresh3's tune half a
+        false touch on a resting hand held for 257 frames (8.6 s). Default 45 frames (1.5 s
+        at 30 fps), twice the longest such run of a true contact on the tune halves of eight
+        suites (22 frames: a stroke on a concave cylinder, stereo 0.9 m; 14 on the default
+        suite's multitouch, 6-12 elsewhere); counted in frames like up_frames. Session 33,
+        docs/accuracy.md (range [0, 100000]; 0 turns it off).
     yield_ratio / yield_min_mm: a contact that is down does not take a point that lies at
         least yield_min_mm from it when a pending contact seen in 3 frames or more, with
         evidence of at least 1, lies within yield_ratio of that distance from the point; that
@@ -432,6 +442,7 @@ class TrackingConfig:
     steep_step_min_mm: float = 75.0
     steep_step_max_mm: float = 88.0
     lift_core_mm: float = 15.0
+    doubt_frames: int = 45
     yield_ratio: float = 0.7
     yield_min_mm: float = 10.0
     report_dir_weight: float = 0.2
@@ -476,6 +487,7 @@ class TrackingConfig:
         _range("tracking.steep_step_max_mm", self.steep_step_max_mm, self.steep_step_min_mm,
                10000.0)
         _range("tracking.lift_core_mm", self.lift_core_mm, 0.0, 200.0)
+        _range("tracking.doubt_frames", self.doubt_frames, 0, 100000)
         _range("tracking.reference_fps", self.reference_fps, 0.0, 1000.0)
         _range("tracking.gate_fps", self.gate_fps, 0.0, 1000.0)
         _range("tracking.yield_ratio", self.yield_ratio, 0.0, 1.0)

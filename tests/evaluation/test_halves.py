@@ -169,6 +169,8 @@ def test_figures_count_far_and_drift_apart() -> None:
     assert f["recall_drift"] == 0.5
     assert f["false_touches"] == 2 and f["false_from_hover_25mm"] == 1
     assert f["false_per_min"] == pytest.approx(2 / (4 * 2.0 / 60), abs=1e-4)
+    assert f["false_longest_s"] == pytest.approx(5 / 30, abs=1e-4)  # frames 30-34 at 30 fps
+    assert figures(rs[:2], far=[False, True])["false_longest_s"] == 0.0
     assert f["recall_far"] is not None
     assert figures(rs[:1], far=[False])["recall_far"] is None
 

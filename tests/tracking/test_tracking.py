@@ -623,3 +623,39 @@ def test_a_still_fingers_reported_offset_follows_a_smoothed_direction(weight, sw
             assert np.hypot(*t.offset_px) == pytest.approx(2.0)
     swing = max(angles) - min(angles)
     assert swing == pytest.approx(20.0, abs=1e-6) if weight == 1.0 else swing < swing_max_deg
+
+
+def _tip_or_edge(edge: bool, x: float = 100.0) -> TouchPoints:
+    """A fingertip-sized region 5 mm up at 1 mm/px, attached along a finger's width (18 mm) or,
+    with ``edge``, along 60 mm (a forearm's edge: no evidence of a touch)."""
+    n = int(round(2 * ((60.0 if edge else 18.0) + 4)))
+    return TouchPoints(np.array([[x, 100.0]]), np.array([5.0]), np.array([300]),
+                       np.array([[np.nan, np.nan]]), None, np.array([n]))
+
+
+@pytest.mark.parametrize(("doubt", "n_edge", "want"), [
+    (5, 4, ["move"] * 4),            # 4 frames without evidence: still down
+    (5, 5, ["move"] * 4 + ["up"]),   # the 5th: up
+    (0, 12, ["move"] * 12),          # off: held as long as it is seen
+])
+def test_a_contact_whose_point_stops_looking_like_a_touch_goes_up(
+        doubt: int, n_edge: int, want: list[str]) -> None:
+    cfg = TrackingConfig(down_frames=2, attach_max_mm=30.0, attach_low_mm=3.0,
+                         doubt_frames=doubt)
+    frames = run(Tracker(cfg, scale_mm_per_px=1.0),
+                 [_tip_or_edge(False)] * 2 + [_tip_or_edge(True)] * n_edge)
+    assert frames[:2] == [[], [(1, "down")]]
+    assert [s for f in frames[2:] for _, s in f] == want
+
+
+def test_doubt_restarts_with_each_frame_of_evidence_and_the_point_starts_over() -> None:
+    cfg = TrackingConfig(down_frames=2, attach_max_mm=30.0, attach_low_mm=3.0, doubt_frames=3)
+    tr = Tracker(cfg, scale_mm_per_px=1.0)
+    seq = ([_tip_or_edge(False)] * 2 + [_tip_or_edge(True)] * 2 + [_tip_or_edge(False)]
+           + [_tip_or_edge(True)] * 3 + [_tip_or_edge(True)] * 4 + [_tip_or_edge(False)] * 2)
+    states = [f for f in run(tr, seq)]
+    assert states[1] == [(1, "down")]
+    assert all(f == [(1, "move")] for f in states[2:7])     # a tip-like frame reset the count
+    assert states[7] == [(1, "up")]                         # 3 frames in a row: up
+    assert states[8:12] == [[]] * 4                         # the edge gives no evidence
+    assert states[12:] == [[], [(2, "down")]]               # a tip again: a new touch

@@ -402,7 +402,8 @@ class Metrics:
     occluded_contacts: episodes hidden throughout (left out of recall, as no camera sees them).
     contact_recall: found / visible episodes. frame_recall: matched / scored contact frames
     (visible frames after the debounce).
-    false_touches: false tracks; false_per_min: per minute of recording.
+    false_touches: false tracks; false_per_min: per minute of recording; false_longest_s:
+    how long the longest of them was reported (s; 0 without any).
     false_by_hover: false tracks per band of hover height (:func:`hover_band`, mm) and "other".
     false_hover_heights_mm: the hover height of each false track that came near a hover.
     early_hover_heights_mm: for each true track reported down before its contact while near a
@@ -443,6 +444,7 @@ class Metrics:
     jitter_rms_mm: float
     ms_per_frame_median: float
     ms_per_frame_p95: float
+    false_longest_s: float = 0.0
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready: NaN becomes None; floats rounded to 4 decimals."""
@@ -535,4 +537,6 @@ def summarize(results: Sequence[EvalResult]) -> Metrics:
         jitter_rms_mm=math.sqrt(sq / cnt) if cnt else math.nan,
         ms_per_frame_median=_q(timing, 50),
         ms_per_frame_p95=_q(timing, 95),
+        false_longest_s=max((float(n) * r.duration_s / r.n_frames for r in results
+                             if r.n_frames for n in r.false_frames), default=0.0),
     )

@@ -22,6 +22,8 @@ a touching tip), and a pending one gains no evidence then. A contact that is dow
 jump onto a point that an established pending contact lies much nearer to (``yield_ratio``):
 when its own tip drops out for a frame, the nearest point is often a hovering finger or hand
 beside it; it counts as missing instead, and nobody takes that point in that frame.
+A contact whose point has given no evidence of a touch for ``doubt_frames`` frames in a row
+goes ``up`` (it came down on a forearm's edge or a held object, which stays in the band).
 Ids are never reused within a run. With ``reference_fps`` set (off by default), the evidence
 counts frames at that rate: in a faster stream (from the frames' timestamps,
 :mod:`.framerate`) a frame counts its length, so that a contact goes down after as many
@@ -75,6 +77,7 @@ class Track:
     hand_at_border: bool = True
     merged: int = 0  # consecutive frames hidden in a neighbour's region
     evidence: float = 0.0  # pending: frames of touch seen, each weighted by how tip-like it was
+    doubt: int = 0  # down: consecutive frames whose point gave no evidence of a touch
     offset_px: XY = (0.0, 0.0)
     offset_dir: XY = (0.0, 0.0)  # the smoothed direction of offset_px (0, 0: none yet)
     core: CoreHistory | None = None  # its finger's core heights (TrackingConfig.lift_core_mm)
@@ -318,6 +321,16 @@ class Tracker:
                 t.missing = 0
                 t.merged = 0
                 t.evidence += w_j
+                t.doubt = t.doubt + 1 if w_j <= 0.0 else 0
+                if t.active and 0 < cfg.doubt_frames <= t.doubt:
+                    # down, but for doubt_frames frames in a row its point has not looked like
+                    # a touch (a forearm's edge the contact came down on): up, and the point
+                    # starts over as a pending contact
+                    out.append(TrackUpdate(t, "up", False))
+                    t = Track(xy[j], pos[j], float(h[j]), int(area[j]),
+                              hand_at_border=border[j], offset_px=offset[j], core=t.core)
+                    keep.append(t)
+                    continue
                 if t.active:
                     out.append(TrackUpdate(t, "move", True))
                 elif t.evidence >= down_frames - 1e-9:
