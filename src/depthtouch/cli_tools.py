@@ -70,6 +70,8 @@ def _add_eval(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--resolution-scale", type=float, metavar="S",
                    help="with --suite: every camera at S times its resolution, the same field "
                         "of view (0.25-3; 1.5 turns the D435's 848x480 into 1272x720)")
+    p.add_argument("--noise-scale", type=float, metavar="S",
+                   help="with --suite: every camera's axial noise S times its own (0.25-4)")
     p.add_argument("--json", action="store_true", help="print the metrics as JSON")
     p.add_argument("--space", choices=("depth", "screen"), default="depth",
                    help="score --events by x, y (depth) or sx, sy (screen: fused cameras of "
@@ -93,12 +95,15 @@ def _add_eval(sub: argparse._SubParsersAction) -> None:
             return print_halves(a.suite, a.half, subset=a.subset, config=cfg,
                                 workers=a.workers, cache=cache_root() if a.cache else None,
                                 as_json=a.json, progress=None if a.json else _print_case,
-                                fps=a.fps, resolution_scale=a.resolution_scale)
+                                fps=a.fps, resolution_scale=a.resolution_scale,
+                                noise_scale=a.noise_scale)
         if a.fps is not None and not a.suite:
             raise ConfigError("--fps needs --suite NAME (a recording has its own frame rate)")
         if a.resolution_scale is not None and not a.suite:
             raise ConfigError("--resolution-scale needs --suite NAME (a recording has its own "
                               "resolution)")
+        if a.noise_scale is not None and not a.suite:
+            raise ConfigError("--noise-scale needs --suite NAME (a recording has its own noise)")
         if a.gestures:
             from .evaluation.gestures import gestures_output
 
@@ -112,7 +117,7 @@ def _add_eval(sub: argparse._SubParsersAction) -> None:
                 a.suite, subset=a.subset, by=a.by, config=cfg, workers=a.workers,
                 cache=cache_root() if a.cache else None,
                 progress=None if a.json else _print_case, fps=a.fps,
-                resolution_scale=a.resolution_scale,
+                resolution_scale=a.resolution_scale, noise_scale=a.noise_scale,
             )
         else:
             metrics = eval_recording_command(a.recording, a.truth, events_path=a.events,
@@ -256,6 +261,8 @@ def _add_sim(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--fps", type=float, default=30.0, help="frame rate, Hz [1, 120]")
     p.add_argument("--resolution-scale", type=float, default=1.0, metavar="S",
                    help="the camera at S times its resolution, same field of view [0.25, 3]")
+    p.add_argument("--noise-scale", type=float, default=1.0, metavar="S",
+                   help="the camera's axial noise S times its own [0.25, 4]; artefacts unchanged")
     p.add_argument("--pitch", type=float, metavar="DEG",
                    help="every lead finger at DEG to the surface [10, 85] instead of the "
                         "scene's random pitch (20-70 for most); the rest of the seed's scene "
@@ -274,6 +281,8 @@ def _add_sim(sub: argparse._SubParsersAction) -> None:
         if a.views is not None and a.resolution_scale != 1.0:
             raise ConfigError("--resolution-scale applies to one camera; leave it out with "
                               "--views")
+        if a.views is not None and a.noise_scale != 1.0:
+            raise ConfigError("--noise-scale applies to one camera; leave it out with --views")
         if a.views is not None and a.pitch is not None:
             raise ConfigError("--pitch applies to one camera; leave it out with --views")
         if a.views is not None:
@@ -290,7 +299,7 @@ def _add_sim(sub: argparse._SubParsersAction) -> None:
         rec = render_scene(
             a.scene, camera=a.camera, distance_m=a.distance, tilt_deg=a.tilt,
             surface=a.surface, seed=a.seed, fps=a.fps, noise=not a.no_noise, hand=a.hand,
-            resolution_scale=a.resolution_scale, pitch_deg=a.pitch,
+            resolution_scale=a.resolution_scale, pitch_deg=a.pitch, noise_scale=a.noise_scale,
         )
         write_recording(rec, a.out, a.truth)
         if not a.quiet:

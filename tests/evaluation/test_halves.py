@@ -112,6 +112,23 @@ def test_a_suite_at_another_resolution_keeps_its_cases_tags_and_halves() -> None
         hard.at_resolution(4.0)
 
 
+def test_a_suite_with_more_noise_keeps_its_cases_tags_and_halves() -> None:
+    hard = load_suite("hard")
+    noisy = hard.at_noise(2.0)
+    assert hard.at_noise(None) is hard
+    assert [dataclasses.replace(c, noise_scale=1.0) for c in noisy.cases] == list(hard.cases)
+    assert [half_of(c) for c in noisy.cases] == [half_of(c) for c in hard.cases]
+    assert noisy.select("far") == [dataclasses.replace(c, noise_scale=2.0)
+                                   for c in hard.select("far")]
+    assert "/noise2/" in noisy.cases[0].label and "/noise" not in hard.cases[0].label
+    # more noise is another recording; at its own noise a case keeps its cache key
+    assert noisy.cases[0].cache_key() != hard.cases[0].cache_key()
+    assert noisy.cases[0].render_kwargs()["noise_scale"] == 2.0
+    assert "noise_scale" not in hard.cases[0].render_kwargs()
+    with pytest.raises(ConfigError, match="allowed \\[0.25, 4\\]"):
+        hard.at_noise(5.0)
+
+
 def test_bad_half_is_a_config_error() -> None:
     with pytest.raises(ConfigError, match="use tune, held-out or all"):
         select_half([], "train")
@@ -208,6 +225,9 @@ def test_report_puts_halves_side_by_side_per_situation() -> None:
     (["eval", "--resolution-scale", "1.5", "x.npz"], "--resolution-scale needs --suite NAME"),
     (["eval", "--suite", "hard", "--resolution-scale", "9", "--half", "tune"],
      "resolution scale 9.0 is out of range"),
+    (["eval", "--noise-scale", "2", "x.npz"], "--noise-scale needs --suite NAME"),
+    (["eval", "--suite", "hard", "--noise-scale", "9", "--half", "tune"],
+     "noise scale 9.0 is out of range"),
 ])
 def test_cli_half_errors_are_one_line(argv: list[str], needle: str,
                                       capsys: pytest.CaptureFixture[str]) -> None:

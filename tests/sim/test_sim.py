@@ -364,3 +364,21 @@ def test_a_camera_at_another_resolution_sees_the_same_scene() -> None:
         assert q["y"] + 0.5 == pytest.approx(1.5 * (p["y"] + 0.5), abs=0.4)
     # the surface's depth at the image centre is the same
     assert abs(float(a.depth[0, 240, 424]) - float(b.depth[0, 360, 636])) <= 2.0
+
+
+def test_a_noisier_camera_sees_the_same_scene_with_the_noise_scaled() -> None:
+    """noise_scale multiplies the axial noise: the same seed's scene, truth and draws, and
+    the depth's departure from the exact geometry about twice as large at 2."""
+    kw = {"camera": "kinect-v2-hard", "distance_m": 1.3, "seed": 3, "fps": 10}
+    exact = render_scene("taps", noise=False, **kw)  # type: ignore[arg-type]
+    a = render_scene("taps", **kw)  # type: ignore[arg-type]
+    b = render_scene("taps", noise_scale=2.0, **kw)  # type: ignore[arg-type]
+    assert a.truth == b.truth
+    ok = (exact.depth[3] > 0) & (a.depth[3] > 0) & (b.depth[3] > 0)
+    ref = exact.depth[3][ok].astype(float)
+    sa = np.std(a.depth[3][ok] - ref)
+    sb = np.std(b.depth[3][ok] - ref)
+    assert 1.8 < sb / sa < 2.2
+    with pytest.raises(ConfigError, match="noise_scale 5 is out of range"):
+        render_scene("taps", noise_scale=5, **kw)  # type: ignore[arg-type]
+

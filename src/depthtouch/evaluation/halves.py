@@ -161,11 +161,13 @@ def eval_halves_command(
     progress: Callable[[SuiteCase, EvalResult], None] | None = None,
     fps: float | None = None,
     resolution_scale: float | None = None,
+    noise_scale: float | None = None,
 ) -> dict[str, Any]:
     """``depthtouch eval --suite NAME --half tune|held-out|all``: :func:`halves_report`
     (``fps``: every case rendered at this frame rate instead of the suite's;
-    ``resolution_scale``: every camera at this many times its resolution)."""
-    s = load_suite(suite).at_fps(fps).at_resolution(resolution_scale)
+    ``resolution_scale``: every camera at this many times its resolution; ``noise_scale``:
+    every camera's axial noise times this)."""
+    s = load_suite(suite).at_fps(fps).at_resolution(resolution_scale).at_noise(noise_scale)
     cases = select_half(s.select(subset), half)
     if not cases:
         raise ConfigError(f"suite {s.name} has no {half} cases; give each placement two seeds")
@@ -267,14 +269,15 @@ def print_halves(suite: str | Path, half: str, *, subset: str | None = None,
                  config: PipelineConfig | None = None, workers: int | None = None,
                  cache: Path | None = None, as_json: bool = False,
                  progress: Callable[[SuiteCase, EvalResult], None] | None = None,
-                 fps: float | None = None, resolution_scale: float | None = None) -> int:
+                 fps: float | None = None, resolution_scale: float | None = None,
+                 noise_scale: float | None = None) -> int:
     """The CLI's ``eval --suite NAME --half H``: print the tables (or JSON); returns 0."""
     import json
     import sys
 
     report = eval_halves_command(suite, half=half, subset=subset, config=config,
                                  workers=workers, cache=cache, progress=progress, fps=fps,
-                                 resolution_scale=resolution_scale)
+                                 resolution_scale=resolution_scale, noise_scale=noise_scale)
     if as_json:
         print(json.dumps(report, indent=1))
         return 0

@@ -80,6 +80,7 @@ class SuiteCase:
     hand: str = "capsule"
     resolution_scale: float = 1.0
     pitch_deg: float | None = None
+    noise_scale: float = 1.0
 
     @property
     def label(self) -> str:
@@ -88,8 +89,9 @@ class SuiteCase:
         hand = "" if self.hand == "capsule" else f"/{self.hand}"
         res = "" if self.resolution_scale == 1.0 else f"@x{self.resolution_scale:g}"
         pitch = "" if self.pitch_deg is None else f"/pitch{self.pitch_deg:g}"
+        noise = "" if self.noise_scale == 1.0 else f"/noise{self.noise_scale:g}"
         return (f"{self.scene}/{self.camera}{res}/{self.distance_m:g}m{surf}{tilt}{hand}"
-                f"{pitch}/s{self.seed}")
+                f"{pitch}{noise}/s{self.seed}")
 
     def render_kwargs(self) -> dict[str, Any]:
         kw: dict[str, Any] = {"camera": self.camera, "distance_m": self.distance_m,
@@ -101,6 +103,8 @@ class SuiteCase:
             kw["resolution_scale"] = self.resolution_scale
         if self.pitch_deg is not None:  # (absent when drawn: the cache keys stay as they were)
             kw["pitch_deg"] = self.pitch_deg
+        if self.noise_scale != 1.0:  # (absent at 1: the cache keys stay as they were)
+            kw["noise_scale"] = self.noise_scale
         return kw
 
     def cache_key(self) -> str:
@@ -149,6 +153,15 @@ class Suite:
         if not 0.25 <= scale <= 3.0:
             raise ConfigError(f"resolution scale {scale!r} is out of range; allowed [0.25, 3]")
         return self._with(resolution_scale=float(scale))
+
+    def at_noise(self, scale: float | None) -> Suite:
+        """The same cases with every camera's axial noise ``scale`` times its own ([0.25, 4];
+        None: this suite). Halves stay the same."""
+        if scale is None:
+            return self
+        if not 0.25 <= scale <= 4.0:
+            raise ConfigError(f"noise scale {scale!r} is out of range; allowed [0.25, 4]")
+        return self._with(noise_scale=float(scale))
 
     def _with(self, **changes: Any) -> Suite:
         """Every case with these render settings changed; tags and order kept."""
@@ -550,14 +563,16 @@ def eval_suite_command(
     progress: Callable[[SuiteCase, EvalResult], None] | None = None,
     fps: float | None = None,
     resolution_scale: float | None = None,
+    noise_scale: float | None = None,
 ) -> dict[str, Metrics]:
     """``depthtouch eval --suite NAME``: metrics pooled by ``by``, plus ``all`` at the end.
 
     cache: keep the rendered recordings in this folder (None: render in memory only).
     fps: render every case at this frame rate (None: the suite's own, 30 fps).
     resolution_scale: every camera at this many times its resolution (None: its own).
+    noise_scale: every camera's axial noise times this (None: its own).
     """
-    s = load_suite(suite).at_fps(fps).at_resolution(resolution_scale)
+    s = load_suite(suite).at_fps(fps).at_resolution(resolution_scale).at_noise(noise_scale)
     cases = s.select(subset)
     results = run_cases(cases, config, gate_mm=s.gate_mm, workers=workers or default_workers(),
                         cache=cache, progress=progress)

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import json
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -108,6 +108,7 @@ def render_scene(
     hand: str = "capsule",
     resolution_scale: float = 1.0,
     pitch_deg: float | None = None,
+    noise_scale: float = 1.0,
 ) -> SimRecording:
     """Render ``scene`` (see :data:`~depthtouch.sim.SCENES`) as seen by ``camera``.
 
@@ -124,12 +125,21 @@ def render_scene(
     pitch_deg: every lead finger at this angle to the surface, [10, 85] deg, instead of the
     scene's random pitch (20-70 deg for most scenes); the seed's spots, timings and hand sizes
     stay as they were (default None: drawn).
+    noise_scale: the camera's axial noise (sigma, and the range a hard profile draws it from)
+    times this, [0.25, 4] (default 1); the seed's draws stay the same, the artefacts (flying
+    and mixed pixels, multipath, holes) too.
     Unknown names or out-of-range values raise ConfigError naming the valid ones.
     """
     if not (isinstance(resolution_scale, (int, float)) and 0.25 <= resolution_scale <= 3.0):
         raise ConfigError(f"resolution_scale {resolution_scale!r} is out of range; "
                           "allowed [0.25, 3]")
+    if not (isinstance(noise_scale, (int, float)) and 0.25 <= noise_scale <= 4.0):
+        raise ConfigError(f"noise_scale {noise_scale!r} is out of range; allowed [0.25, 4]")
     profile = scaled_profile(get_profile(camera), float(resolution_scale))
+    if noise_scale != 1.0:
+        lo_n, hi_n = profile.noise_scale_range
+        profile = replace(
+            profile, noise_scale_range=(lo_n * noise_scale, hi_n * noise_scale))
     world_surface = make_surface(surface, distance_m, tilt_deg)
     check_render_args(fps, seed)
     lo, hi = PITCH_RANGE_DEG
