@@ -367,7 +367,7 @@ class TrackingConfig:
         too high, level heights behind it, or on another finger's axis) for this many frames
         in a row; the point starts over as a pending contact. Nothing else ends a contact that
         came down on the wrong thing while it stays in the band: on hard-fresh3's tune half a
-        false touch on a resting hand held for 257 frames (8.6 s). Default 45 frames (1.5 s
+        false touch on a resting hand was held for 8.7 s. Default 45 frames (1.5 s
         at 30 fps), twice the longest such run of a true contact on the tune halves of eight
         suites (22 frames: a stroke on a concave cylinder, stereo 0.9 m; 14 on the default
         suite's multitouch, 6-12 elsewhere); counted in frames like up_frames. Session 33,
