@@ -96,37 +96,28 @@ def test_a_suite_at_another_frame_rate_keeps_its_cases_tags_and_halves() -> None
     assert fast.cases[0].cache_key() != hard.cases[0].cache_key()
 
 
-def test_a_suite_at_another_resolution_keeps_its_cases_tags_and_halves() -> None:
+@pytest.mark.parametrize(("method", "field", "value", "mark", "absent", "bad", "allowed"), [
+    ("at_resolution", "resolution_scale", 1.5, "@x1.5/", "@x", 4.0, "allowed \\[0.25, 3\\]"),
+    ("at_noise", "noise_scale", 2.0, "/noise2/", "/noise", 5.0, "allowed \\[0.25, 4\\]"),
+])
+def test_a_suite_rendered_otherwise_keeps_its_cases_tags_and_halves(
+        method: str, field: str, value: float, mark: str, absent: str, bad: float,
+        allowed: str) -> None:
+    """Another resolution or more noise: the same cases, tags and halves, other recordings."""
     hard = load_suite("hard")
-    big = hard.at_resolution(1.5)
-    assert hard.at_resolution(None) is hard
-    assert [dataclasses.replace(c, resolution_scale=1.0) for c in big.cases] == list(hard.cases)
-    assert [half_of(c) for c in big.cases] == [half_of(c) for c in hard.cases]
-    assert big.select("far") == [dataclasses.replace(c, resolution_scale=1.5)
-                                 for c in hard.select("far")]
-    assert "@x1.5/" in big.cases[0].label and "@x" not in hard.cases[0].label
-    # another resolution is another recording; at its own resolution a case keeps its cache key
-    assert big.cases[0].cache_key() != hard.cases[0].cache_key()
-    assert "resolution_scale" not in hard.cases[0].render_kwargs()
-    with pytest.raises(ConfigError, match="allowed \\[0.25, 3\\]"):
-        hard.at_resolution(4.0)
-
-
-def test_a_suite_with_more_noise_keeps_its_cases_tags_and_halves() -> None:
-    hard = load_suite("hard")
-    noisy = hard.at_noise(2.0)
-    assert hard.at_noise(None) is hard
-    assert [dataclasses.replace(c, noise_scale=1.0) for c in noisy.cases] == list(hard.cases)
-    assert [half_of(c) for c in noisy.cases] == [half_of(c) for c in hard.cases]
-    assert noisy.select("far") == [dataclasses.replace(c, noise_scale=2.0)
+    other = getattr(hard, method)(value)
+    assert getattr(hard, method)(None) is hard
+    assert [dataclasses.replace(c, **{field: 1.0}) for c in other.cases] == list(hard.cases)
+    assert [half_of(c) for c in other.cases] == [half_of(c) for c in hard.cases]
+    assert other.select("far") == [dataclasses.replace(c, **{field: value})
                                    for c in hard.select("far")]
-    assert "/noise2/" in noisy.cases[0].label and "/noise" not in hard.cases[0].label
-    # more noise is another recording; at its own noise a case keeps its cache key
-    assert noisy.cases[0].cache_key() != hard.cases[0].cache_key()
-    assert noisy.cases[0].render_kwargs()["noise_scale"] == 2.0
-    assert "noise_scale" not in hard.cases[0].render_kwargs()
-    with pytest.raises(ConfigError, match="allowed \\[0.25, 4\\]"):
-        hard.at_noise(5.0)
+    assert mark in other.cases[0].label and absent not in hard.cases[0].label
+    # another rendering is another recording; as rendered by default a case keeps its cache key
+    assert other.cases[0].cache_key() != hard.cases[0].cache_key()
+    assert other.cases[0].render_kwargs()[field] == value
+    assert field not in hard.cases[0].render_kwargs()
+    with pytest.raises(ConfigError, match=allowed):
+        getattr(hard, method)(bad)
 
 
 def test_bad_half_is_a_config_error() -> None:
