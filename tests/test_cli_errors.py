@@ -391,3 +391,20 @@ def test_outputs_never_overwrite_the_recording(
     assert npz_recording.read_bytes() == before
     assert r.rc == 2 and len(r.err_lines) == 1 and "Traceback" not in r.err
     assert "is the recording itself" in r.err
+
+
+@pytest.mark.parametrize(
+    "args, needle",
+    [
+        (["replay", "rec.npz", "--out", "x"], "unrecognized arguments: --out x (see depthtouch replay -h)"),
+        (["--bogus"], "unrecognized arguments: --bogus (see depthtouch -h)"),
+        (["replay"], "required: recording (see depthtouch replay -h)"),
+        (["eval", "--half", "nope"], "invalid choice: 'nope'"),
+    ],
+)
+def test_usage_errors_name_the_command_whose_help_to_read(
+    cli: Callable[..., CliResult], args: list[str], needle: str
+) -> None:
+    r = cli(*args)
+    assert r.rc == 2 and len(r.err_lines) == 1 and needle in r.err, r
+    assert "depthtouch depthtouch" not in r.err

@@ -33,7 +33,25 @@ if TYPE_CHECKING:
 class _Parser(argparse.ArgumentParser):
     def error(self, message: str) -> None:  # type: ignore[override]
         # argparse's own usage errors follow the one-line rule too
-        self.exit(2, f"depthtouch: error: {message} (see depthtouch {self.prog.split()[-1]} -h)\n")
+        self.exit(2, f"depthtouch: error: {message} (see {self.prog} -h)\n")
+
+    def parse_args(  # type: ignore[override]
+        self, args: Sequence[str] | None = None, namespace: argparse.Namespace | None = None
+    ) -> argparse.Namespace:
+        # arguments a command does not know are that command's error (argparse reports them
+        # from the top parser: "see depthtouch -h" would not name the command)
+        ns, extra = self.parse_known_args(args, namespace)
+        if extra:
+            command = getattr(ns, "command", None)
+            sub = self._subparsers_by_name().get(command) if command else None
+            (sub or self).error(f"unrecognized arguments: {' '.join(extra)}")
+        return ns
+
+    def _subparsers_by_name(self) -> dict[str, argparse.ArgumentParser]:
+        for action in self._actions:
+            if isinstance(action, argparse._SubParsersAction):
+                return dict(action.choices)
+        return {}
 
 
 def _add_common_outputs(p: argparse.ArgumentParser) -> None:

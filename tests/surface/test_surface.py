@@ -1,9 +1,14 @@
+import dataclasses
+import logging
+
 import numpy as np
 import pytest
 
-from depthtouch.config import SurfaceConfig
+from depthtouch.config import PipelineConfig, RegionConfig, SurfaceConfig
 from depthtouch.errors import SurfaceError
-from depthtouch.surface.model import SurfaceLearner, height_factor, learn_surface
+from depthtouch.surface.bounds import TIP_TOP_MM, band_bounds, noisy_share
+from depthtouch.surface.model import SurfaceLearner, SurfaceModel, height_factor, learn_surface
+from depthtouch.surface.surface import Surface
 from depthtouch.types import Frame
 
 K = np.array([[500.0, 0, 31.5], [0, 500.0, 23.5], [0, 0, 1]])
@@ -115,3 +120,48 @@ def test_learner_rejects_changed_size():
     lr.update(Frame(np.full((4, 4), 900, np.uint16), 0.0, 0))
     with pytest.raises(SurfaceError, match="one resolution"):
         lr.update(Frame(np.full((4, 5), 900, np.uint16), 0.1, 1))
+
+
+def _noisy_model(sigma_far_mm: float, far_share: float, shape=(20, 40)) -> SurfaceModel:
+    """A flat surface 1 m away, its left ``far_share`` of columns with noise sigma_far_mm."""
+    z = np.full(shape, 1000.0, np.float32)
+    sig = np.full(shape, 1.0, np.float32)
+    sig[:, : int(round(far_share * shape[1]))] = sigma_far_mm
+    return SurfaceModel(z, z, z, z, sig, np.ones(shape, bool), "mean", 0.001, K, 30)
+
+
+def test_noisy_share_counts_usable_pixels_whose_tl_reaches_a_fingertip():
+    # Tl = 3 sigma: 6 mm sigma gives 18 mm (at or above TIP_TOP_MM) on the left 60 %
+    b = band_bounds(_noisy_model(6.0, 0.6), RegionConfig())
+    assert noisy_share(b) == pytest.approx(0.6)
+    assert noisy_share(b, tl_mm=19.0) == 0.0
+    assert noisy_share(b, tl_mm=3.0) == 1.0
+    # exactly at the limit counts (Tl 16 mm = 3 x 5.333 mm)
+    at = band_bounds(_noisy_model(TIP_TOP_MM / 3.0 + 1e-4, 1.0), RegionConfig())
+    assert noisy_share(at) == 1.0
+    # no usable pixel: nothing is noisy
+    m = _noisy_model(6.0, 1.0)
+    none = SurfaceModel(m.depth_mm, m.mean_mm, m.mode_mm, m.median_mm, m.sigma_mm,
+                        np.zeros_like(m.valid), "mean", 0.001, K, 30)
+    assert noisy_share(band_bounds(none, RegionConfig())) == 0.0
+
+
+@pytest.mark.parametrize("far_share, warns", [(0.6, True), (0.5, True), (0.4, False), (0.0, False)])
+def test_a_surface_too_noisy_for_touches_is_warned_about_once(caplog, far_share, warns):
+    caplog.set_level(logging.WARNING, logger="depthtouch.surface.surface")
+    Surface(PipelineConfig(), _noisy_model(6.0, far_share))
+    msgs = [r.getMessage() for r in caplog.records if r.name == "depthtouch.surface.surface"]
+    if not warns:
+        assert msgs == []
+        return
+    assert len(msgs) == 1 and "\n" not in msgs[0]
+    assert f"on {100 * far_share:.0f}% of the surface" in msgs[0]
+    assert "16 mm or more" in msgs[0] and "mount the camera closer" in msgs[0]
+
+
+def test_no_noise_warning_when_tl_was_raised_on_purpose(caplog):
+    caplog.set_level(logging.WARNING, logger="depthtouch.surface.surface")
+    cfg = PipelineConfig()
+    cfg = dataclasses.replace(cfg, regions=dataclasses.replace(cfg.regions, tl_floor_mm=16.0))
+    Surface(cfg, _noisy_model(1.0, 0.0))
+    assert [r for r in caplog.records if r.name == "depthtouch.surface.surface"] == []

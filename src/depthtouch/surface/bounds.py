@@ -126,6 +126,20 @@ def tl_around(tl_mm: np.ndarray, valid: np.ndarray, r: int = TL_AROUND_PX) -> np
     return np.where(den > 0.5, num / np.maximum(den, 1.0), tl_mm).astype(np.float32)
 
 
+#: a touching fingertip's top stands 12-16 mm above the surface (docs/accuracy.md, session 33):
+#: where Tl is this high or higher, a touching tip does not stand out of one frame's noise
+TIP_TOP_MM = 16.0
+
+
+def noisy_share(bounds: BandBounds, tl_mm: float = TIP_TOP_MM) -> float:
+    """Share of the usable surface whose Tl is ``tl_mm`` or more (0.0 when none is usable):
+    where touches will be missed because the depth there is too noisy (pure)."""
+    n = int(np.count_nonzero(bounds.valid))
+    if n == 0:
+        return 0.0
+    return float(np.count_nonzero(bounds.valid & (bounds.tl_mm >= np.float32(tl_mm)))) / n
+
+
 def band_bounds(surface: SurfaceModel, config: RegionConfig, tip_radius_mm: float = 7.0) -> BandBounds:
     """Precompute the per-pixel depth bounds of the band and of the hand (once per surface).
 
