@@ -53,8 +53,9 @@ def _add_eval(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--events", help="evaluate this events file instead of running the sensor")
     p.add_argument("--suite", help="evaluate a suite: a committed name (default) or a .toml")
     p.add_argument("--subset", help="only the suite's cases tagged so (e.g. quick)")
-    p.add_argument("--by", default="scene",
-                   help="suite rows: scene, camera, group, label, distance_m, surface or all")
+    p.add_argument("--by",
+                   help="suite rows: scene, camera, group, label, distance_m, surface or all "
+                        "(default scene; with --half, group: the suite's situations)")
     p.add_argument("--config", help="TOML config file (see docs/config.md)")
     p.add_argument("--gate-mm", type=float, default=20.0, help="match gate in mm (default 20)")
     p.add_argument("--workers", type=int, help="processes for a suite (default: cores, <= 4)")
@@ -96,7 +97,7 @@ def _add_eval(sub: argparse._SubParsersAction) -> None:
                                 workers=a.workers, cache=cache_root() if a.cache else None,
                                 as_json=a.json, progress=None if a.json else _print_case,
                                 fps=a.fps, resolution_scale=a.resolution_scale,
-                                noise_scale=a.noise_scale)
+                                noise_scale=a.noise_scale, by=a.by or "group")
         if a.fps is not None and not a.suite:
             raise ConfigError("--fps needs --suite NAME (a recording has its own frame rate)")
         if a.resolution_scale is not None and not a.suite:
@@ -114,7 +115,7 @@ def _add_eval(sub: argparse._SubParsersAction) -> None:
             if a.recording or a.truth or a.events:
                 raise ConfigError("give either --suite or a recording with --truth, not both")
             metrics = eval_suite_command(
-                a.suite, subset=a.subset, by=a.by, config=cfg, workers=a.workers,
+                a.suite, subset=a.subset, by=a.by or "scene", config=cfg, workers=a.workers,
                 cache=cache_root() if a.cache else None,
                 progress=None if a.json else _print_case, fps=a.fps,
                 resolution_scale=a.resolution_scale, noise_scale=a.noise_scale,

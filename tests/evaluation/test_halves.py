@@ -14,6 +14,7 @@ from depthtouch.evaluation.halves import (
     HALVES,
     figures,
     half_of,
+    halves_markdown,
     halves_report,
     late_false_after_change,
     overall_rows,
@@ -208,8 +209,32 @@ def test_report_puts_halves_side_by_side_per_situation() -> None:
     assert not any(isinstance(v, float) and math.isnan(v) for v in rep["overall"]["tune"].values())
 
 
+def test_report_rows_pool_by_another_attribute_or_none() -> None:
+    suite = suite_from_dict({"suite": {"name": "t"}, "group": [
+        {"name": "near", "scenes": ["approach", "taps"], "cameras": ["kinect-v2-hard"],
+         "distances_m": [1.0], "seeds": [1, 2]},
+    ]})
+    cases = list(suite.cases)
+    results = [_recording(i % 2 == 0) for i in range(len(cases))]
+    by_scene = halves_report(suite, cases, results, by="scene")
+    assert by_scene["by"] == "scene"
+    assert set(by_scene["situations"]) == {"approach", "taps"}
+    assert by_scene["overall"] == halves_report(suite, cases, results)["overall"]
+    for name in ("approach", "taps"):
+        mine = [r for c, r in zip(cases, results, strict=True) if c.scene == name]
+        got = sum(f["contacts"] for f in by_scene["situations"][name].values())
+        assert got == sum(int(r.ep_visible.sum()) for r in mine)
+    assert halves_markdown(by_scene)[len(overall_rows(by_scene)) + 3].startswith("| scene | half |")
+    assert halves_report(suite, cases, results, by="all")["situations"] == {}
+    assert "| situation | half |" in "\n".join(halves_markdown(halves_report(suite, cases, results)))
+    with pytest.raises(ConfigError, match="cannot group by 'seed'"):
+        halves_report(suite, cases, results, by="seed")
+
+
 @pytest.mark.parametrize(("argv", "needle"), [
     (["eval", "--half", "tune"], "--half needs --suite NAME"),
+    (["eval", "--suite", "hard", "--half", "tune", "--by", "seed"], "cannot group by 'seed'"),
+    (["eval", "--suite", "hard", "--by", "seed"], "cannot group by 'seed'"),
     (["eval", "--suite", "hard", "--subset", "nope", "--half", "tune"], "has no subset 'nope'"),
     (["eval", "--fps", "60", "x.npz"], "--fps needs --suite NAME"),
     (["eval", "--suite", "hard", "--fps", "500", "--half", "tune"], "fps 500.0 is out of range"),

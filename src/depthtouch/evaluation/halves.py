@@ -28,7 +28,7 @@ from typing import TYPE_CHECKING, Any
 from ..config import PipelineConfig
 from ..errors import ConfigError
 from .metrics import EvalResult, summarize
-from .suite import Suite, SuiteCase, default_workers, load_suite, run_cases
+from .suite import Suite, SuiteCase, check_group_key, default_workers, load_suite, run_cases
 
 if TYPE_CHECKING:  # pragma: no cover
     from rich.table import Table
@@ -127,9 +127,12 @@ def figures(results: Sequence[EvalResult], far: Sequence[bool],
 
 
 def halves_report(suite: Suite, cases: Sequence[SuiteCase],
-                  results: Sequence[EvalResult]) -> dict[str, Any]:
-    """Both halves side by side: ``{"overall": {half: figures}, "situations": {name: {half:
-    figures}}}`` over the given cases (one result per case, in order)."""
+                  results: Sequence[EvalResult], by: str = "group") -> dict[str, Any]:
+    """Both halves side by side: ``{"overall": {half: figures}, "by": by, "situations": {name:
+    {half: figures}}}`` over the given cases (one result per case, in order). The rows of
+    ``situations`` pool the cases by ``by`` (one of :data:`suite.GROUP_KEYS`): their suite group (the
+    situation, default), scene, camera, label, distance or surface; ``all`` gives no rows."""
+    check_group_key(by)
     far = [FAR_TAG in suite.tags.get(c, frozenset()) for c in cases]
     drift = [DRIFT_TAG in suite.tags.get(c, frozenset()) for c in cases]
     halves = [half_of(c) for c in cases]
@@ -143,11 +146,14 @@ def halves_report(suite: Suite, cases: Sequence[SuiteCase],
                                  [drift[i] for i in idx])
         return out
 
-    def in_group(name: str) -> Callable[[int], bool]:
-        return lambda i: cases[i].group == name
+    keys = [str(getattr(c, by)) if by != "all" else "" for c in cases]
 
-    situations = {name: block(in_group(name)) for name in dict.fromkeys(c.group for c in cases)}
-    return {"suite": suite.name, "overall": block(lambda i: True), "situations": situations}
+    def in_row(name: str) -> Callable[[int], bool]:
+        return lambda i: keys[i] == name
+
+    rows = {} if by == "all" else {name: block(in_row(name)) for name in dict.fromkeys(keys)}
+    return {"suite": suite.name, "overall": block(lambda i: True), "by": by,
+            "situations": rows}
 
 
 def eval_halves_command(
@@ -162,18 +168,20 @@ def eval_halves_command(
     fps: float | None = None,
     resolution_scale: float | None = None,
     noise_scale: float | None = None,
+    by: str = "group",
 ) -> dict[str, Any]:
-    """``depthtouch eval --suite NAME --half tune|held-out|all``: :func:`halves_report`
-    (``fps``: every case rendered at this frame rate instead of the suite's;
+    """``depthtouch eval --suite NAME --half tune|held-out|all``: :func:`halves_report`, its
+    rows pooled ``by`` (``fps``: every case rendered at this frame rate instead of the suite's;
     ``resolution_scale``: every camera at this many times its resolution; ``noise_scale``:
     every camera's axial noise times this)."""
+    check_group_key(by)  # before any case is rendered
     s = load_suite(suite).at_fps(fps).at_resolution(resolution_scale).at_noise(noise_scale)
     cases = select_half(s.select(subset), half)
     if not cases:
         raise ConfigError(f"suite {s.name} has no {half} cases; give each placement two seeds")
     results = run_cases(cases, config, gate_mm=s.gate_mm, workers=workers or default_workers(),
                         cache=cache, progress=progress)
-    return halves_report(s, cases, results)
+    return halves_report(s, cases, results, by=by)
 
 
 # --- tables ----------------------------------------------------------------------------------
@@ -245,6 +253,12 @@ def situation_rows(report: dict[str, Any]) -> list[list[str]]:
     return out
 
 
+def _row_head(report: dict[str, Any]) -> str:
+    """The name of the report's rows: "situation" (a suite group) or what they pool by."""
+    by = report.get("by", "group")
+    return "situation" if by == "group" else by
+
+
 def halves_tables(report: dict[str, Any]) -> tuple[Table, Table]:
     """Two rich tables: the overall figures (halves side by side) and the per-situation rows."""
     from rich.table import Table
@@ -255,8 +269,9 @@ def halves_tables(report: dict[str, Any]) -> tuple[Table, Table]:
         a.add_column(h, justify="right")
     for row in overall_rows(report):
         a.add_row(*row)
-    b = Table(title="per situation")
-    b.add_column("situation")
+    head = _row_head(report)
+    b = Table(title=f"per {head}")
+    b.add_column(head)
     b.add_column("half")
     for _, head, _ in SITUATION_COLS:
         b.add_column(head, justify="right")
@@ -270,22 +285,26 @@ def print_halves(suite: str | Path, half: str, *, subset: str | None = None,
                  cache: Path | None = None, as_json: bool = False,
                  progress: Callable[[SuiteCase, EvalResult], None] | None = None,
                  fps: float | None = None, resolution_scale: float | None = None,
-                 noise_scale: float | None = None) -> int:
-    """The CLI's ``eval --suite NAME --half H``: print the tables (or JSON); returns 0."""
+                 noise_scale: float | None = None, by: str = "group") -> int:
+    """The CLI's ``eval --suite NAME --half H [--by B]``: print the tables (or JSON); returns
+    0."""
     import json
     import sys
 
     report = eval_halves_command(suite, half=half, subset=subset, config=config,
                                  workers=workers, cache=cache, progress=progress, fps=fps,
-                                 resolution_scale=resolution_scale, noise_scale=noise_scale)
+                                 resolution_scale=resolution_scale, noise_scale=noise_scale,
+                                 by=by)
     if as_json:
         print(json.dumps(report, indent=1))
         return 0
     from rich.console import Console
 
     console = Console(width=None if sys.stdout.isatty() else 200)
-    for table in halves_tables(report):
-        console.print(table)
+    overall, rows = halves_tables(report)
+    console.print(overall)
+    if report["situations"]:
+        console.print(rows)
     return 0
 
 
@@ -294,7 +313,7 @@ def halves_markdown(report: dict[str, Any]) -> list[str]:
     out = ["| measure | tune | held-out |", "|---|---|---|"]
     out += ["| " + " | ".join(row) + " |" for row in overall_rows(report)]
     heads = [head for _, head, _ in SITUATION_COLS]
-    out += ["", "| situation | half | " + " | ".join(heads) + " |",
+    out += ["", f"| {_row_head(report)} | half | " + " | ".join(heads) + " |",
             "|---|---|" + "---|" * len(heads)]
     out += ["| " + " | ".join(row) + " |" for row in situation_rows(report)]
     return out

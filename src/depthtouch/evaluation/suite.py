@@ -486,14 +486,23 @@ def run_cases(
                     progress=progress)[0]
 
 
+#: the case attributes a suite's results can be pooled by (``--by``), besides ``all``
+GROUP_KEYS = ("scene", "camera", "group", "label", "distance_m", "surface")
+
+
+def check_group_key(by: str) -> None:
+    """Refuse a ``--by`` that is neither one of :data:`GROUP_KEYS` nor ``all``."""
+    if by != "all" and by not in GROUP_KEYS:
+        raise ConfigError(f"cannot group by {by!r}; use {', '.join(GROUP_KEYS)} or all")
+
+
 def group_metrics(
     cases: Sequence[SuiteCase], results: Sequence[EvalResult], by: str
 ) -> dict[str, Metrics]:
-    """Pool results by a case attribute (``scene``, ``camera``, ``group``, ``label``) or ``all``."""
+    """Pool results by a case attribute (one of :data:`GROUP_KEYS`) or ``all``."""
+    check_group_key(by)
     if by == "all":
         return {"all": summarize(results)}
-    if by not in ("scene", "camera", "group", "label", "distance_m", "surface"):
-        raise ConfigError(f"cannot group by {by!r}; use scene, camera, group, label or all")
     groups: dict[str, list[EvalResult]] = {}
     for c, r in zip(cases, results, strict=True):
         groups.setdefault(str(getattr(c, by)), []).append(r)
@@ -572,6 +581,7 @@ def eval_suite_command(
     resolution_scale: every camera at this many times its resolution (None: its own).
     noise_scale: every camera's axial noise times this (None: its own).
     """
+    check_group_key(by)  # before any case is rendered
     s = load_suite(suite).at_fps(fps).at_resolution(resolution_scale).at_noise(noise_scale)
     cases = s.select(subset)
     results = run_cases(cases, config, gate_mm=s.gate_mm, workers=workers or default_workers(),
