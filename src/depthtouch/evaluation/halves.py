@@ -269,9 +269,9 @@ def halves_tables(report: dict[str, Any]) -> tuple[Table, Table]:
         a.add_column(h, justify="right")
     for row in overall_rows(report):
         a.add_row(*row)
-    head = _row_head(report)
-    b = Table(title=f"per {head}")
-    b.add_column(head)
+    row_head = _row_head(report)
+    b = Table(title=f"per {row_head}")
+    b.add_column(row_head)
     b.add_column("half")
     for _, head, _ in SITUATION_COLS:
         b.add_column(head, justify="right")
@@ -312,6 +312,8 @@ def halves_markdown(report: dict[str, Any]) -> list[str]:
     """Markdown lines: the overall figures (halves side by side) and the per-situation table."""
     out = ["| measure | tune | held-out |", "|---|---|---|"]
     out += ["| " + " | ".join(row) + " |" for row in overall_rows(report)]
+    if not report["situations"]:
+        return out
     heads = [head for _, head, _ in SITUATION_COLS]
     out += ["", f"| {_row_head(report)} | half | " + " | ".join(heads) + " |",
             "|---|---|" + "---|" * len(heads)]
