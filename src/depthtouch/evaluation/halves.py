@@ -146,12 +146,11 @@ def halves_report(suite: Suite, cases: Sequence[SuiteCase],
                                  [drift[i] for i in idx])
         return out
 
-    keys = [str(getattr(c, by)) if by != "all" else "" for c in cases]
-
-    def in_row(name: str) -> Callable[[int], bool]:
-        return lambda i: keys[i] == name
-
-    rows = {} if by == "all" else {name: block(in_row(name)) for name in dict.fromkeys(keys)}
+    rows: dict[str, dict[str, Any]] = {}
+    if by != "all":
+        keys = [str(getattr(c, by)) for c in cases]
+        for name in dict.fromkeys(keys):
+            rows[name] = block(lambda i, name=name: keys[i] == name)  # type: ignore[misc]
     return {"suite": suite.name, "overall": block(lambda i: True), "by": by,
             "situations": rows}
 
