@@ -146,11 +146,12 @@ def halves_report(suite: Suite, cases: Sequence[SuiteCase],
                                  [drift[i] for i in idx])
         return out
 
-    rows: dict[str, dict[str, Any]] = {}
-    if by != "all":
-        keys = [str(getattr(c, by)) for c in cases]
-        for name in dict.fromkeys(keys):
-            rows[name] = block(lambda i, name=name: keys[i] == name)  # type: ignore[misc]
+    keys = [str(getattr(c, by)) for c in cases] if by != "all" else []
+
+    def in_row(name: str) -> Callable[[int], bool]:
+        return lambda i: keys[i] == name
+
+    rows = {name: block(in_row(name)) for name in dict.fromkeys(keys)}
     return {"suite": suite.name, "overall": block(lambda i: True), "by": by,
             "situations": rows}
 
