@@ -65,6 +65,10 @@ def _add_eval(sub: argparse._SubParsersAction) -> None:
                         "$DEPTHTOUCH_CACHE_MAX_GB (default 50, 0: no limit)")
     p.add_argument("--half", choices=("tune", "held-out", "all"),
                    help="with --suite: the tune or held-out half (or all), both side by side")
+    p.add_argument("--ci", type=int, metavar="N", default=0,
+                   help="with --half: 95%% bootstrap intervals over the recordings of each half "
+                        "for recall, false touches, error, jitter and angle (N resamples, e.g. "
+                        "1000)")
     p.add_argument("--fps", type=float,
                    help="with --suite: render every case at this frame rate (Hz, 1-120) "
                         "instead of the suite's 30")
@@ -97,7 +101,10 @@ def _add_eval(sub: argparse._SubParsersAction) -> None:
                                 workers=a.workers, cache=cache_root() if a.cache else None,
                                 as_json=a.json, progress=None if a.json else _print_case,
                                 fps=a.fps, resolution_scale=a.resolution_scale,
-                                noise_scale=a.noise_scale, by=a.by or "group")
+                                noise_scale=a.noise_scale, by=a.by or "group", ci=a.ci)
+        if a.ci:
+            raise ConfigError("--ci needs --suite NAME --half H (intervals over a half's "
+                              "recordings)")
         if a.fps is not None and not a.suite:
             raise ConfigError("--fps needs --suite NAME (a recording has its own frame rate)")
         if a.resolution_scale is not None and not a.suite:

@@ -27,6 +27,7 @@ from typing import TYPE_CHECKING, Any
 
 from ..config import PipelineConfig
 from ..errors import ConfigError
+from .bootstrap import bootstrap_intervals, check_resamples
 from .metrics import EvalResult, summarize
 from .suite import Suite, SuiteCase, check_group_key, default_workers, load_suite, run_cases
 
@@ -127,12 +128,17 @@ def figures(results: Sequence[EvalResult], far: Sequence[bool],
 
 
 def halves_report(suite: Suite, cases: Sequence[SuiteCase],
-                  results: Sequence[EvalResult], by: str = "group") -> dict[str, Any]:
+                  results: Sequence[EvalResult], by: str = "group",
+                  ci: int = 0) -> dict[str, Any]:
     """Both halves side by side: ``{"overall": {half: figures}, "by": by, "situations": {name:
     {half: figures}}}`` over the given cases (one result per case, in order). The rows of
     ``situations`` pool the cases by ``by`` (one of :data:`suite.GROUP_KEYS`): their suite group (the
-    situation, default), scene, camera, label, distance or surface; ``all`` gives no rows."""
+    situation, default), scene, camera, label, distance or surface; ``all`` gives no rows.
+    ``ci`` > 0: each overall half also gets ``"ci95"``, the 95 % bootstrap interval over its
+    recordings of each measure of :data:`bootstrap.CI_KEYS` (``ci`` resamples)."""
     check_group_key(by)
+    if ci:
+        check_resamples(ci)
     far = [FAR_TAG in suite.tags.get(c, frozenset()) for c in cases]
     drift = [DRIFT_TAG in suite.tags.get(c, frozenset()) for c in cases]
     halves = [half_of(c) for c in cases]
@@ -152,8 +158,14 @@ def halves_report(suite: Suite, cases: Sequence[SuiteCase],
         return lambda i: keys[i] == name
 
     rows = {name: block(in_row(name)) for name in dict.fromkeys(keys)}
-    return {"suite": suite.name, "overall": block(lambda i: True), "by": by,
-            "situations": rows}
+    overall = block(lambda i: True)
+    if ci:
+        for h, f in overall.items():
+            idx = [i for i in range(len(cases)) if halves[i] == h]
+            f["ci95"] = bootstrap_intervals([results[i] for i in idx], figures,
+                                            [far[i] for i in idx], [drift[i] for i in idx],
+                                            resamples=ci)
+    return {"suite": suite.name, "overall": overall, "by": by, "situations": rows}
 
 
 def eval_halves_command(
@@ -169,19 +181,23 @@ def eval_halves_command(
     resolution_scale: float | None = None,
     noise_scale: float | None = None,
     by: str = "group",
+    ci: int = 0,
 ) -> dict[str, Any]:
     """``depthtouch eval --suite NAME --half tune|held-out|all``: :func:`halves_report`, its
-    rows pooled ``by`` (``fps``: every case rendered at this frame rate instead of the suite's;
-    ``resolution_scale``: every camera at this many times its resolution; ``noise_scale``:
-    every camera's axial noise times this)."""
+    rows pooled ``by``, with ``ci`` bootstrap resamples for the intervals (0: none). ``fps``:
+    every case rendered at this frame rate instead of the suite's; ``resolution_scale``: every
+    camera at this many times its resolution; ``noise_scale``: every camera's axial noise times
+    this."""
     check_group_key(by)  # before any case is rendered
+    if ci:
+        check_resamples(ci)
     s = load_suite(suite).at_fps(fps).at_resolution(resolution_scale).at_noise(noise_scale)
     cases = select_half(s.select(subset), half)
     if not cases:
         raise ConfigError(f"suite {s.name} has no {half} cases; give each placement two seeds")
     results = run_cases(cases, config, gate_mm=s.gate_mm, workers=workers or default_workers(),
                         cache=cache, progress=progress)
-    return halves_report(s, cases, results, by=by)
+    return halves_report(s, cases, results, by=by, ci=ci)
 
 
 # --- tables ----------------------------------------------------------------------------------
@@ -232,10 +248,18 @@ def situation_recall(f: dict[str, Any]) -> Any:
     return f.get("recall_working") if f.get("recall_working") is not None else f.get("recall_far")
 
 
+def _with_ci(f: dict[str, Any], key: str, spec: str) -> str:
+    """A half's figure as text, followed by its bootstrap interval when the report has one."""
+    text = fmt(f.get(key), spec)
+    iv = f.get("ci95", {}).get(key)
+    return f"{text} ({fmt(iv[0], spec)}-{fmt(iv[1], spec)})" if iv and text != "-" else text
+
+
 def overall_rows(report: dict[str, Any]) -> list[list[str]]:
-    """[measure, tune, held-out] rows of the overall figures."""
+    """[measure, tune, held-out] rows of the overall figures (with their 95 % intervals in
+    brackets when the report has them)."""
     ov = report["overall"]
-    return [[label] + [fmt(ov.get(h, {}).get(key), spec) for h in HALVES]
+    return [[label] + [_with_ci(ov.get(h, {}), key, spec) for h in HALVES]
             for key, label, spec in ROWS]
 
 
@@ -285,16 +309,16 @@ def print_halves(suite: str | Path, half: str, *, subset: str | None = None,
                  cache: Path | None = None, as_json: bool = False,
                  progress: Callable[[SuiteCase, EvalResult], None] | None = None,
                  fps: float | None = None, resolution_scale: float | None = None,
-                 noise_scale: float | None = None, by: str = "group") -> int:
-    """The CLI's ``eval --suite NAME --half H [--by B]``: print the tables (or JSON); returns
-    0."""
+                 noise_scale: float | None = None, by: str = "group", ci: int = 0) -> int:
+    """The CLI's ``eval --suite NAME --half H [--by B] [--ci N]``: print the tables (or JSON);
+    returns 0."""
     import json
     import sys
 
     report = eval_halves_command(suite, half=half, subset=subset, config=config,
                                  workers=workers, cache=cache, progress=progress, fps=fps,
                                  resolution_scale=resolution_scale, noise_scale=noise_scale,
-                                 by=by)
+                                 by=by, ci=ci)
     if as_json:
         print(json.dumps(report, indent=1))
         return 0
