@@ -69,6 +69,10 @@ def _add_eval(sub: argparse._SubParsersAction) -> None:
                    help="with --half: 95%% bootstrap intervals over the recordings of each half "
                         "for recall, false touches, error, jitter and angle (N resamples, e.g. "
                         "1000)")
+    p.add_argument("--against", metavar="B.toml",
+                   help="with --half: run each case with this config too and give B - A per "
+                        "measure with its paired 95%% bootstrap interval (A: --config or the "
+                        "defaults)")
     p.add_argument("--fps", type=float,
                    help="with --suite: render every case at this frame rate (Hz, 1-120) "
                         "instead of the suite's 30")
@@ -97,13 +101,25 @@ def _add_eval(sub: argparse._SubParsersAction) -> None:
 
             if not a.suite:
                 raise ConfigError("--half needs --suite NAME (e.g. --suite hard --half held-out)")
+            if a.against:
+                from .evaluation.halves import print_compare
+
+                if a.fps is not None or a.resolution_scale is not None or a.noise_scale is not None:
+                    raise ConfigError("--against runs the suite as it is; leave out --fps, "
+                                      "--resolution-scale and --noise-scale")
+                return print_compare(a.suite, a.half, _load_config(a.against), subset=a.subset,
+                                     config=cfg, workers=a.workers,
+                                     cache=cache_root() if a.cache else None, as_json=a.json,
+                                     ci=a.ci or 1000,
+                                     progress=None if a.json else _print_case)
             return print_halves(a.suite, a.half, subset=a.subset, config=cfg,
                                 workers=a.workers, cache=cache_root() if a.cache else None,
                                 as_json=a.json, progress=None if a.json else _print_case,
                                 fps=a.fps, resolution_scale=a.resolution_scale,
                                 noise_scale=a.noise_scale, by=a.by or "group", ci=a.ci)
-        if a.ci:
-            raise ConfigError("--ci needs --suite NAME --half H (intervals over a half's "
+        if a.ci or a.against:
+            flag = "--ci" if a.ci else "--against"
+            raise ConfigError(f"{flag} needs --suite NAME --half H (intervals over a half's "
                               "recordings)")
         if a.fps is not None and not a.suite:
             raise ConfigError("--fps needs --suite NAME (a recording has its own frame rate)")

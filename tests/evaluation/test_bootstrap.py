@@ -7,9 +7,16 @@ from test_evaluation import contact, doc, track
 from test_halves import _recording
 
 from depthtouch.errors import ConfigError
-from depthtouch.evaluation.bootstrap import CI_KEYS, bootstrap_intervals, check_resamples
+from depthtouch.evaluation.bootstrap import (
+    CI_KEYS,
+    bootstrap_intervals,
+    check_resamples,
+    paired_intervals,
+)
 from depthtouch.evaluation.halves import (
     HALVES,
+    compare_report,
+    compare_rows,
     figures,
     halves_markdown,
     halves_report,
@@ -100,3 +107,52 @@ def test_cli_ci_errors_are_one_line(argv: list[str], needle: str,
     assert main(argv) == 2
     err = capsys.readouterr().err
     assert needle in err and err.count("\n") == 1
+
+
+def test_paired_intervals_cancel_what_the_draw_adds_to_both() -> None:
+    """B finds one contact more than A on one recording of eight: the draw moves both recalls
+    by as much as 0.375, their difference only by what that recording adds."""
+    a = [_recording(True), _recording(False)] * 4
+    b = [_recording(True)] + a[1:]
+    b[1] = _recording(True)
+    far, drift = [False] * 8, [False] * 8
+    alone = bootstrap_intervals(a, figures, far, drift, resamples=500)["recall_working"]
+    got = paired_intervals(a, b, figures, far, drift, resamples=500)["recall_working"]
+    assert got["a"] == 0.5 and got["b"] == 0.625 and got["diff"] == 0.125
+    lo, hi = got["ci"]
+    assert 0.0 <= lo <= 0.125 <= hi <= 0.375  # never negative: B is never worse
+    assert hi - lo < alone[1] - alone[0]
+    same = paired_intervals(a, a, figures, far, drift, resamples=200)
+    assert same["recall_working"]["diff"] == 0.0 and same["recall_working"]["ci"] == [0.0, 0.0]
+    assert same["recall_drift"] == {"a": None, "b": None, "diff": None, "ci": None}
+    with pytest.raises(ValueError, match="differ in length"):
+        paired_intervals(a, b[:7], figures, far, drift)
+
+
+def test_compare_report_and_rows_give_each_half_its_difference() -> None:
+    suite = suite_from_dict({"suite": {"name": "t"}, "group": [
+        {"name": "near", "scenes": ["approach"], "cameras": ["kinect-v2-hard"],
+         "distances_m": [1.0], "seeds": [1, 2, 3, 4]},
+    ]})
+    cases = list(suite.cases)
+    res_a = [_recording(False) for _ in cases]
+    res_b = [_recording(True) for _ in cases]
+    rep = compare_report(suite, cases, res_a, res_b, ci=200)
+    assert set(rep["halves"]) == set(HALVES)
+    for h in HALVES:
+        rec = rep["halves"][h]["recall_working"]
+        assert (rec["a"], rec["b"], rec["diff"], rec["ci"]) == (0.0, 1.0, 1.0, [1.0, 1.0])
+    rows = compare_rows(rep)
+    assert rows[0] == ["contact recall, working range", "tune", "0.000", "1.000",
+                       "+1.000 (+1.000 to +1.000)"]
+    assert not any(r[0] == "contact recall under drift" for r in rows)  # defined on neither
+    with pytest.raises(ConfigError, match="out of range"):
+        compare_report(suite, cases, res_a, res_b, ci=10)
+
+
+def test_cli_against_needs_a_half(capsys: pytest.CaptureFixture[str]) -> None:
+    from depthtouch.cli import main
+
+    assert main(["eval", "--suite", "hard", "--against", "b.toml"]) == 2
+    err = capsys.readouterr().err
+    assert "--against needs --suite NAME --half H" in err and err.count("\n") == 1

@@ -27,9 +27,17 @@ from typing import TYPE_CHECKING, Any
 
 from ..config import PipelineConfig
 from ..errors import ConfigError
-from .bootstrap import bootstrap_intervals, check_resamples
+from .bootstrap import CI_KEYS, bootstrap_intervals, check_resamples, paired_intervals
 from .metrics import EvalResult, summarize
-from .suite import Suite, SuiteCase, check_group_key, default_workers, load_suite, run_cases
+from .suite import (
+    Suite,
+    SuiteCase,
+    check_group_key,
+    default_workers,
+    load_suite,
+    run_cases,
+    run_grid,
+)
 
 if TYPE_CHECKING:  # pragma: no cover
     from rich.table import Table
@@ -200,6 +208,49 @@ def eval_halves_command(
     return halves_report(s, cases, results, by=by, ci=ci)
 
 
+def compare_report(suite: Suite, cases: Sequence[SuiteCase], results_a: Sequence[EvalResult],
+                   results_b: Sequence[EvalResult], ci: int = 1000) -> dict[str, Any]:
+    """Configuration B against A on the same cases, per half: ``{"suite": name, "halves":
+    {half: {measure: {"a", "b", "diff", "ci"}}}}`` (:func:`bootstrap.paired_intervals` over
+    the half's recordings, ``ci`` resamples)."""
+    check_resamples(ci)
+    far = [FAR_TAG in suite.tags.get(c, frozenset()) for c in cases]
+    drift = [DRIFT_TAG in suite.tags.get(c, frozenset()) for c in cases]
+    halves = [half_of(c) for c in cases]
+    out: dict[str, Any] = {}
+    for h in HALVES:
+        idx = [i for i in range(len(cases)) if halves[i] == h]
+        if idx:
+            out[h] = paired_intervals([results_a[i] for i in idx], [results_b[i] for i in idx],
+                                      figures, [far[i] for i in idx], [drift[i] for i in idx],
+                                      resamples=ci)
+    return {"suite": suite.name, "halves": out}
+
+
+def eval_compare_command(
+    suite: str | Path,
+    config_b: PipelineConfig,
+    *,
+    half: str = "all",
+    subset: str | None = None,
+    config: PipelineConfig | None = None,
+    workers: int | None = None,
+    cache: Path | None = None,
+    progress: Callable[[SuiteCase, EvalResult], None] | None = None,
+    ci: int = 1000,
+) -> dict[str, Any]:
+    """``depthtouch eval --suite NAME --half H --against B.toml``: each case rendered once and
+    run with both configurations, then :func:`compare_report`."""
+    check_resamples(ci)  # before any case is rendered
+    s = load_suite(suite)
+    cases = select_half(s.select(subset), half)
+    if not cases:
+        raise ConfigError(f"suite {s.name} has no {half} cases; give each placement two seeds")
+    res_a, res_b = run_grid(cases, [config, config_b], gate_mm=s.gate_mm,
+                            workers=workers or default_workers(), cache=cache, progress=progress)
+    return compare_report(s, cases, res_a, res_b, ci=ci)
+
+
 # --- tables ----------------------------------------------------------------------------------
 ROWS: tuple[tuple[str, str, str], ...] = (
     ("recordings", "recordings", "{:d}"),
@@ -329,6 +380,52 @@ def print_halves(suite: str | Path, half: str, *, subset: str | None = None,
     console.print(overall)
     if report["situations"]:
         console.print(rows)
+    return 0
+
+
+def compare_rows(report: dict[str, Any]) -> list[list[str]]:
+    """[measure, half, A, B, B - A (95 % interval)] rows of a :func:`compare_report`."""
+    spec = {key: sp for key, _, sp in ROWS}
+    label = {key: lab for key, lab, _ in ROWS}
+    out = []
+    for key in CI_KEYS:
+        for h in HALVES:
+            c = report["halves"].get(h, {}).get(key)
+            if not c or c["a"] is None and c["b"] is None:
+                continue
+            sp = spec[key]
+            d = "-" if c["diff"] is None else f"{c['diff']:+.3f}"
+            if c["ci"]:
+                d += f" ({c['ci'][0]:+.3f} to {c['ci'][1]:+.3f})"
+            out.append([label[key], h, fmt(c["a"], sp), fmt(c["b"], sp), d])
+    return out
+
+
+def print_compare(suite: str | Path, half: str, config_b: PipelineConfig, *,
+                  subset: str | None = None, config: PipelineConfig | None = None,
+                  workers: int | None = None, cache: Path | None = None,
+                  as_json: bool = False, ci: int = 1000,
+                  progress: Callable[[SuiteCase, EvalResult], None] | None = None) -> int:
+    """The CLI's ``eval --suite NAME --half H --against B.toml``: print the table (or JSON);
+    returns 0."""
+    import json
+    import sys
+
+    report = eval_compare_command(suite, config_b, half=half, subset=subset, config=config,
+                                  workers=workers, cache=cache, progress=progress, ci=ci)
+    if as_json:
+        print(json.dumps(report, indent=1))
+        return 0
+    from rich.console import Console
+    from rich.table import Table
+
+    t = Table(title=f"suite {report['suite']}: B (--against) against A (--config or defaults), "
+                    "paired over the same recordings")
+    for head in ("measure", "half", "A", "B", "B - A (95 % interval)"):
+        t.add_column(head, justify="left" if head in ("measure", "half") else "right")
+    for row in compare_rows(report):
+        t.add_row(*row)
+    Console(width=None if sys.stdout.isatty() else 200).print(t)
     return 0
 
 
