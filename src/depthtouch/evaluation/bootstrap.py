@@ -70,16 +70,17 @@ def bootstrap_intervals(
             v = f.get(k)
             if v is not None and math.isfinite(v):
                 draws[k].append(float(v))
+    return {k: _interval(draws[k], resamples, level) for k in CI_KEYS}
+
+
+def _interval(draws: list[float], resamples: int, level: float) -> list[float] | None:
+    """The central ``level`` interval of the resampled values, or None when fewer than half of
+    the resamples gave one."""
+    if len(draws) * 2 < resamples:
+        return None
     tail = 100.0 * (1.0 - level) / 2.0
-    out: dict[str, list[float] | None] = {}
-    for k in CI_KEYS:
-        v = draws[k]
-        if len(v) * 2 < resamples:
-            out[k] = None
-        else:
-            lo, hi = np.percentile(np.asarray(v), [tail, 100.0 - tail])
-            out[k] = [round(float(lo), 4), round(float(hi), 4)]
-    return out
+    lo, hi = np.percentile(np.asarray(draws), [tail, 100.0 - tail])
+    return [round(float(lo), 4), round(float(hi), 4)]
 
 
 def paired_intervals(
@@ -118,14 +119,10 @@ def paired_intervals(
             va, vb = ra.get(k), rb.get(k)
             if va is not None and vb is not None and math.isfinite(va) and math.isfinite(vb):
                 draws[k].append(float(vb) - float(va))
-    tail = 100.0 * (1.0 - level) / 2.0
     out: dict[str, dict[str, Any]] = {}
     for k in CI_KEYS:
         a, b = fa.get(k), fb.get(k)
         diff = None if a is None or b is None else round(float(b) - float(a), 4)
-        ci = None
-        if diff is not None and len(draws[k]) * 2 >= resamples:
-            lo, hi = np.percentile(np.asarray(draws[k]), [tail, 100.0 - tail])
-            ci = [round(float(lo), 4), round(float(hi), 4)]
+        ci = None if diff is None else _interval(draws[k], resamples, level)
         out[k] = {"a": a, "b": b, "diff": diff, "ci": ci}
     return out
