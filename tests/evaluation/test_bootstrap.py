@@ -146,6 +146,7 @@ def test_compare_report_and_rows_give_each_half_its_difference() -> None:
     assert rows[0] == ["contact recall, working range", "tune", "0.000", "1.000",
                        "+1.000 (+1.000 to +1.000)"]
     assert not any(r[0] == "contact recall under drift" for r in rows)  # defined on neither
+    assert ["false touches", "tune", "0", "0", "+0 (+0 to +0)"] in rows  # counts, whole
     with pytest.raises(ConfigError, match="out of range"):
         compare_report(suite, cases, res_a, res_b, ci=10)
 

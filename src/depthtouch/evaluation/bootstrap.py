@@ -27,6 +27,9 @@ from .metrics import EvalResult
 #: the measures given an interval (those a few recordings can move; counts are left out)
 CI_KEYS = ("recall_working", "false_per_min", "error_median_mm", "error_p95_mm",
            "jitter_rms_mm", "angle_error_deg", "recall_drift")
+#: the measures a comparison of two configurations gives (with the counts an issue bounds)
+COMPARE_KEYS = (*CI_KEYS, "false_touches", "false_from_hover_25mm", "early_from_hover_25mm",
+                "id_switches")
 #: resamples allowed by ``depthtouch eval --ci``
 CI_MIN, CI_MAX = 100, 100_000
 
@@ -94,7 +97,7 @@ def paired_intervals(
     level: float = 0.95,
     seed: int = 0,
 ) -> dict[str, dict[str, Any]]:
-    """Two configurations run on the same recordings: for each measure of :data:`CI_KEYS`,
+    """Two configurations run on the same recordings: for each measure of :data:`COMPARE_KEYS`,
     ``{"a": figure, "b": figure, "diff": b - a, "ci": [lo, hi] | None}``.
 
     Each resample draws the recordings once and computes both figures on them, so what the
@@ -109,18 +112,18 @@ def paired_intervals(
     fa, fb = figures_of(list(results_a), list(far), list(drift)), figures_of(
         list(results_b), list(far), list(drift))
     rng = np.random.default_rng(seed)
-    draws: dict[str, list[float]] = {k: [] for k in CI_KEYS}
+    draws: dict[str, list[float]] = {k: [] for k in COMPARE_KEYS}
     for _ in range(resamples if n else 0):
         pick = rng.integers(0, n, n).tolist()
         sub_far, sub_drift = [far[i] for i in pick], [drift[i] for i in pick]
         ra = figures_of([results_a[i] for i in pick], sub_far, sub_drift)
         rb = figures_of([results_b[i] for i in pick], sub_far, sub_drift)
-        for k in CI_KEYS:
+        for k in COMPARE_KEYS:
             va, vb = ra.get(k), rb.get(k)
             if va is not None and vb is not None and math.isfinite(va) and math.isfinite(vb):
                 draws[k].append(float(vb) - float(va))
     out: dict[str, dict[str, Any]] = {}
-    for k in CI_KEYS:
+    for k in COMPARE_KEYS:
         a, b = fa.get(k), fb.get(k)
         diff = None if a is None or b is None else round(float(b) - float(a), 4)
         ci = None if diff is None else _interval(draws[k], resamples, level)

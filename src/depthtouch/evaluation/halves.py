@@ -27,7 +27,7 @@ from typing import TYPE_CHECKING, Any
 
 from ..config import PipelineConfig
 from ..errors import ConfigError
-from .bootstrap import CI_KEYS, bootstrap_intervals, check_resamples, paired_intervals
+from .bootstrap import COMPARE_KEYS, bootstrap_intervals, check_resamples, paired_intervals
 from .metrics import EvalResult, summarize
 from .suite import (
     Suite,
@@ -385,18 +385,19 @@ def print_halves(suite: str | Path, half: str, *, subset: str | None = None,
 
 def compare_rows(report: dict[str, Any]) -> list[list[str]]:
     """[measure, half, A, B, B - A (95 % interval)] rows of a :func:`compare_report`."""
-    spec = {key: sp for key, _, sp in ROWS}
-    label = {key: lab for key, lab, _ in ROWS}
+    spec = {key: sp for key, _, sp in ROWS} | {"false_touches": "{:d}"}
+    label = {key: lab for key, lab, _ in ROWS} | {"false_touches": "false touches"}
     out = []
-    for key in CI_KEYS:
+    for key in COMPARE_KEYS:
         for h in HALVES:
             c = report["halves"].get(h, {}).get(key)
             if not c or c["a"] is None and c["b"] is None:
                 continue
             sp = spec[key]
-            d = "-" if c["diff"] is None else f"{c['diff']:+.3f}"
+            dspec = "{:+.0f}" if sp == "{:d}" else "{:+.3f}"  # a count's difference is whole
+            d = "-" if c["diff"] is None else dspec.format(c["diff"])
             if c["ci"]:
-                d += f" ({c['ci'][0]:+.3f} to {c['ci'][1]:+.3f})"
+                d += f" ({dspec.format(c['ci'][0])} to {dspec.format(c['ci'][1])})"
             out.append([label[key], h, fmt(c["a"], sp), fmt(c["b"], sp), d])
     return out
 
