@@ -333,16 +333,19 @@ def test_the_shift_is_an_offset_tracking_does_not_use(bounds):
     """find_touch_points keeps the tip where it was found and gives the shift apart."""
     f = Finger(320.3, 240.6, 30)
     on = detect(bounds, [f])
-    off = find_touch_points(*_frame(bounds, [f]), TouchPointConfig(tip_tl_shift=0.0))
+    off = find_touch_points(*_frame(bounds, [f]),
+                            TouchPointConfig(tip_tl_shift=0.0, tip_shift_mm=0.0))
     np.testing.assert_array_equal(on.xy_px, off.xy_px)
     assert off.offset_px is None and on.offset_px is not None
     x, y = np.rint(on.xy_px[0]).astype(int)
     win = bounds.tl_mm[y - 4:y + 5, x - 4:x + 5][bounds.valid[y - 4:y + 5, x - 4:x + 5]]
     tl = max(float(win.mean()) - bounds.tl_floor_mm, 0.0)  # Tl around the point, above its floor
     assert tl > 0
-    per_mm = TouchPointConfig().tip_tl_shift  # the default, which detect() uses
+    per_mm = TouchPointConfig().tip_tl_shift  # the defaults, which detect() uses
+    const_mm = TouchPointConfig().tip_shift_mm
     assert per_mm > 0
-    assert np.hypot(*on.offset_px[0]) == pytest.approx(per_mm * tl / bounds.mm_per_px, rel=1e-4)
+    assert np.hypot(*on.offset_px[0]) == pytest.approx((per_mm * tl + const_mm)
+                                                        / bounds.mm_per_px, rel=1e-4)
 
 
 def test_tl_around_is_the_mean_over_the_valid_pixels_of_the_square() -> None:
