@@ -356,7 +356,7 @@ class Experiments:
         cases = s.select("all")
         res = self.run(cases)
         self.timings["hard"] = time.perf_counter() - t0
-        report = halves_report(s, cases, res)
+        report = halves_report(s, cases, res, ci=1000)
         overall = summarize(res)
         self.md += [
             "## 6. The hard suite, tune and held-out halves",
@@ -369,6 +369,29 @@ class Experiments:
             "`held-out`. The far stereo scenes (1.1 m wall 20 deg, 1.6 m table 32 deg) count "
             "apart in recall. *false > 2 s after change*: false touches that began at or after "
             "a book was put down or taken away and were still reported 2 s after it.",
+            "",
+            "The second table's rows are the situations; `--by camera` (or `scene`, `label`, "
+            "`distance_m`, `surface`) pools them by another attribute of the cases, both halves "
+            "side by side, and `--by all` leaves that table out.",
+            "",
+            "In brackets (`--ci 1000`), each overall figure's 95 % percentile-bootstrap "
+            "interval over the half's recordings (1000 resamples of the recordings with "
+            "replacement, seeded; `evaluation/bootstrap.py`). A half has 50 recordings, and a "
+            "few of them carry some figures (one recording of the tune half holds 23 % of its "
+            "squared jitter): the interval says how far another set of recordings, such as the "
+            "maintainers', could move a figure by the draw alone. A figure at its bound "
+            "(recall 1.000) gets a zero-width interval: the bootstrap cannot show misses it "
+            "never saw.",
+            "",
+            "`--against B.toml` renders each case once, runs it with both configurations (A: "
+            "`--config` or the defaults) and gives, per half and measure, A, B and B - A with "
+            "the 95 % interval of the difference over the same resamples "
+            "(`bootstrap.paired_intervals`). What a draw of recordings adds to both figures "
+            "cancels, so the interval of a difference is much narrower than either figure's "
+            "own: on hard-fresh3's tune half, `touchpoints.tip_shift_mm` 0 -> 1.25 moved the "
+            "error median by -0.835 mm (-1.096 to -0.432), while that median's own interval "
+            "runs from 2.6 to 5.0 mm. An interval that holds 0 is a change the recordings "
+            "cannot tell from none.",
             "",
             *halves_markdown(report),
             "",
