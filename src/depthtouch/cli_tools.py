@@ -107,6 +107,9 @@ def _add_eval(sub: argparse._SubParsersAction) -> None:
                 if a.fps is not None or a.resolution_scale is not None or a.noise_scale is not None:
                     raise ConfigError("--against runs the suite as it is; leave out --fps, "
                                       "--resolution-scale and --noise-scale")
+                if a.by is not None:
+                    raise ConfigError("--against compares the overall figures of each half; "
+                                      "leave out --by")
                 return print_compare(a.suite, a.half, _load_config(a.against), subset=a.subset,
                                      config=cfg, workers=a.workers,
                                      cache=cache_root() if a.cache else None, as_json=a.json,

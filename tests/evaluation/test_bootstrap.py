@@ -99,6 +99,10 @@ def test_resamples_out_of_range_are_refused(n: int) -> None:
 @pytest.mark.parametrize(("argv", "needle"), [
     (["eval", "--suite", "hard", "--half", "tune", "--ci", "5"], "--ci 5 is out of range"),
     (["eval", "--suite", "hard", "--ci", "1000"], "--ci needs --suite NAME --half H"),
+    (["eval", "--suite", "hard", "--half", "tune", "--against", "b.toml", "--by", "camera"],
+     "leave out --by"),
+    (["eval", "--suite", "hard", "--half", "tune", "--against", "b.toml", "--fps", "60"],
+     "leave out --fps"),
 ])
 def test_cli_ci_errors_are_one_line(argv: list[str], needle: str,
                                     capsys: pytest.CaptureFixture[str]) -> None:
