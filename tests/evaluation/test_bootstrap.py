@@ -96,23 +96,6 @@ def test_resamples_out_of_range_are_refused(n: int) -> None:
     assert check_resamples(1000) == 1000
 
 
-@pytest.mark.parametrize(("argv", "needle"), [
-    (["eval", "--suite", "hard", "--half", "tune", "--ci", "5"], "--ci 5 is out of range"),
-    (["eval", "--suite", "hard", "--ci", "1000"], "--ci needs --suite NAME --half H"),
-    (["eval", "--suite", "hard", "--half", "tune", "--against", "b.toml", "--by", "camera"],
-     "leave out --by"),
-    (["eval", "--suite", "hard", "--half", "tune", "--against", "b.toml", "--fps", "60"],
-     "leave out --fps"),
-])
-def test_cli_ci_errors_are_one_line(argv: list[str], needle: str,
-                                    capsys: pytest.CaptureFixture[str]) -> None:
-    from depthtouch.cli import main
-
-    assert main(argv) == 2
-    err = capsys.readouterr().err
-    assert needle in err and err.count("\n") == 1
-
-
 def test_paired_intervals_cancel_what_the_draw_adds_to_both() -> None:
     """B finds one contact more than A on one recording of eight: the draw moves both recalls
     by as much as 0.375, their difference only by what that recording adds."""
@@ -154,10 +137,3 @@ def test_compare_report_and_rows_give_each_half_its_difference() -> None:
     with pytest.raises(ConfigError, match="out of range"):
         compare_report(suite, cases, res_a, res_b, ci=10)
 
-
-def test_cli_against_needs_a_half(capsys: pytest.CaptureFixture[str]) -> None:
-    from depthtouch.cli import main
-
-    assert main(["eval", "--suite", "hard", "--against", "b.toml"]) == 2
-    err = capsys.readouterr().err
-    assert "--against needs --suite NAME --half H" in err and err.count("\n") == 1

@@ -246,6 +246,14 @@ def test_report_rows_pool_by_another_attribute_or_none() -> None:
     (["eval", "--noise-scale", "2", "x.npz"], "--noise-scale needs --suite NAME"),
     (["eval", "--suite", "hard", "--noise-scale", "9", "--half", "tune"],
      "noise scale 9.0 is out of range"),
+    # bootstrap intervals and comparisons (evaluation/bootstrap.py)
+    (["eval", "--suite", "hard", "--half", "tune", "--ci", "5"], "--ci 5 is out of range"),
+    (["eval", "--suite", "hard", "--ci", "1000"], "--ci needs --suite NAME --half H"),
+    (["eval", "--suite", "hard", "--against", "b.toml"], "--against needs --suite NAME --half H"),
+    (["eval", "--suite", "hard", "--half", "tune", "--against", "b.toml", "--by", "camera"],
+     "leave out --by"),
+    (["eval", "--suite", "hard", "--half", "tune", "--against", "b.toml", "--fps", "60"],
+     "leave out --fps"),
 ])
 def test_cli_half_errors_are_one_line(argv: list[str], needle: str,
                                       capsys: pytest.CaptureFixture[str]) -> None:

@@ -16,7 +16,7 @@ a report is reproducible.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from typing import Any
 
 import numpy as np
@@ -43,6 +43,29 @@ def check_resamples(n: int) -> int:
     return n
 
 
+def _resampled(
+    sets: Sequence[Sequence[EvalResult]],
+    figures_of: Callable[[list[EvalResult], list[bool], list[bool]], dict[str, Any]],
+    far: Sequence[bool],
+    drift: Sequence[bool],
+    resamples: int,
+    seed: int,
+) -> Iterator[list[dict[str, Any]]]:
+    """For each of ``resamples`` draws of the recordings with replacement (seeded), the figures
+    of every result set in ``sets`` on that draw (the sets hold the same recordings, in the
+    same order; ``far`` and ``drift`` are per recording and travel with it)."""
+    n = len(sets[0])
+    rng = np.random.default_rng(seed)
+    for _ in range(resamples if n else 0):
+        pick = rng.integers(0, n, n).tolist()
+        sub_far, sub_drift = [far[i] for i in pick], [drift[i] for i in pick]
+        yield [figures_of([rs[i] for i in pick], sub_far, sub_drift) for rs in sets]
+
+
+def _finite(v: Any) -> bool:
+    return v is not None and math.isfinite(v)
+
+
 def bootstrap_intervals(
     results: Sequence[EvalResult],
     figures_of: Callable[[list[EvalResult], list[bool], list[bool]], dict[str, Any]],
@@ -60,19 +83,11 @@ def bootstrap_intervals(
     fewer than half of the resamples define it (a half without drift recordings has no recall
     under drift). Pure: the same inputs and seed give the same intervals.
     """
-    n = len(results)
-    if n == 0:
-        return {k: None for k in CI_KEYS}
-    rng = np.random.default_rng(seed)
     draws: dict[str, list[float]] = {k: [] for k in CI_KEYS}
-    for _ in range(resamples):
-        pick = rng.integers(0, n, n).tolist()
-        f = figures_of([results[i] for i in pick], [far[i] for i in pick],
-                       [drift[i] for i in pick])
+    for (f,) in _resampled([results], figures_of, far, drift, resamples, seed):
         for k in CI_KEYS:
-            v = f.get(k)
-            if v is not None and math.isfinite(v):
-                draws[k].append(float(v))
+            if _finite(f.get(k)):
+                draws[k].append(float(f[k]))
     return {k: _interval(draws[k], resamples, level) for k in CI_KEYS}
 
 
@@ -111,17 +126,11 @@ def paired_intervals(
         raise ValueError(f"paired results differ in length: {n} against {len(results_b)}")
     fa, fb = figures_of(list(results_a), list(far), list(drift)), figures_of(
         list(results_b), list(far), list(drift))
-    rng = np.random.default_rng(seed)
     draws: dict[str, list[float]] = {k: [] for k in COMPARE_KEYS}
-    for _ in range(resamples if n else 0):
-        pick = rng.integers(0, n, n).tolist()
-        sub_far, sub_drift = [far[i] for i in pick], [drift[i] for i in pick]
-        ra = figures_of([results_a[i] for i in pick], sub_far, sub_drift)
-        rb = figures_of([results_b[i] for i in pick], sub_far, sub_drift)
+    for ra, rb in _resampled([results_a, results_b], figures_of, far, drift, resamples, seed):
         for k in COMPARE_KEYS:
-            va, vb = ra.get(k), rb.get(k)
-            if va is not None and vb is not None and math.isfinite(va) and math.isfinite(vb):
-                draws[k].append(float(vb) - float(va))
+            if _finite(ra.get(k)) and _finite(rb.get(k)):
+                draws[k].append(float(rb[k]) - float(ra[k]))
     out: dict[str, dict[str, Any]] = {}
     for k in COMPARE_KEYS:
         a, b = fa.get(k), fb.get(k)

@@ -135,6 +135,22 @@ def figures(results: Sequence[EvalResult], far: Sequence[bool],
     }
 
 
+def _case_tags(suite: Suite, cases: Sequence[SuiteCase]
+               ) -> tuple[list[bool], list[bool], list[str]]:
+    """Per case: whether it counts apart in recall (far), whether it drifts, and its half."""
+    far = [FAR_TAG in suite.tags.get(c, frozenset()) for c in cases]
+    drift = [DRIFT_TAG in suite.tags.get(c, frozenset()) for c in cases]
+    return far, drift, [half_of(c) for c in cases]
+
+
+def _half_cases(s: Suite, subset: str | None, half: str) -> list[SuiteCase]:
+    """The suite's cases of ``subset`` in ``half``; a ConfigError when there are none."""
+    cases = select_half(s.select(subset), half)
+    if not cases:
+        raise ConfigError(f"suite {s.name} has no {half} cases; give each placement two seeds")
+    return cases
+
+
 def halves_report(suite: Suite, cases: Sequence[SuiteCase],
                   results: Sequence[EvalResult], by: str = "group",
                   ci: int = 0) -> dict[str, Any]:
@@ -147,9 +163,7 @@ def halves_report(suite: Suite, cases: Sequence[SuiteCase],
     check_group_key(by)
     if ci:
         check_resamples(ci)
-    far = [FAR_TAG in suite.tags.get(c, frozenset()) for c in cases]
-    drift = [DRIFT_TAG in suite.tags.get(c, frozenset()) for c in cases]
-    halves = [half_of(c) for c in cases]
+    far, drift, halves = _case_tags(suite, cases)
 
     def block(keep: Callable[[int], bool]) -> dict[str, Any]:
         out: dict[str, Any] = {}
@@ -200,9 +214,7 @@ def eval_halves_command(
     if ci:
         check_resamples(ci)
     s = load_suite(suite).at_fps(fps).at_resolution(resolution_scale).at_noise(noise_scale)
-    cases = select_half(s.select(subset), half)
-    if not cases:
-        raise ConfigError(f"suite {s.name} has no {half} cases; give each placement two seeds")
+    cases = _half_cases(s, subset, half)
     results = run_cases(cases, config, gate_mm=s.gate_mm, workers=workers or default_workers(),
                         cache=cache, progress=progress)
     return halves_report(s, cases, results, by=by, ci=ci)
@@ -214,9 +226,7 @@ def compare_report(suite: Suite, cases: Sequence[SuiteCase], results_a: Sequence
     {half: {measure: {"a", "b", "diff", "ci"}}}}`` (:func:`bootstrap.paired_intervals` over
     the half's recordings, ``ci`` resamples)."""
     check_resamples(ci)
-    far = [FAR_TAG in suite.tags.get(c, frozenset()) for c in cases]
-    drift = [DRIFT_TAG in suite.tags.get(c, frozenset()) for c in cases]
-    halves = [half_of(c) for c in cases]
+    far, drift, halves = _case_tags(suite, cases)
     out: dict[str, Any] = {}
     for h in HALVES:
         idx = [i for i in range(len(cases)) if halves[i] == h]
@@ -243,9 +253,7 @@ def eval_compare_command(
     run with both configurations, then :func:`compare_report`."""
     check_resamples(ci)  # before any case is rendered
     s = load_suite(suite)
-    cases = select_half(s.select(subset), half)
-    if not cases:
-        raise ConfigError(f"suite {s.name} has no {half} cases; give each placement two seeds")
+    cases = _half_cases(s, subset, half)
     res_a, res_b = run_grid(cases, [config, config_b], gate_mm=s.gate_mm,
                             workers=workers or default_workers(), cache=cache, progress=progress)
     return compare_report(s, cases, res_a, res_b, ci=ci)
