@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import mmap
 import os
+import threading
 import zipfile
 import zlib
 from collections.abc import Iterator
@@ -212,8 +213,16 @@ def _open_npz(fh: IO[bytes], p: Path) -> Any:
     return data
 
 
+# np.load parses each member's header with ast.literal_eval, and CPython 3.11 before 3.11.8
+# can fail building two ASTs at once in two threads ("SystemError: AST constructor recursion
+# depth mismatch", python/cpython#106905): two sources opened together (multicam) read one at a
+# time
+_READ_LOCK = threading.Lock()
+
+
 def _array(data: Any, key: str, p: Path) -> np.ndarray:
-    value = data[key]
+    with _READ_LOCK:
+        value = data[key]
     if not isinstance(value, np.ndarray):  # a zip member without the .npy format
         raise SourceError(f"{p}: member {key!r} is not a numpy array; see docs/formats.md")
     return value
