@@ -16,7 +16,8 @@ from pathlib import Path
 
 from depthtouch.config import PipelineConfig
 from depthtouch.evaluation.metrics import summarize
-from depthtouch.evaluation.suite import SuiteCase, run_grid
+from depthtouch.evaluation.suite import SuiteCase
+from depthtouch.evaluation.suiterun import run_grid
 from depthtouch.tracking.filters import FILTERS
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -16,7 +16,8 @@ import itertools
 from collections import defaultdict
 
 from depthtouch.evaluation.metrics import EvalResult, summarize
-from depthtouch.evaluation.suite import SuiteCase, default_workers, run_cases
+from depthtouch.evaluation.suite import SuiteCase
+from depthtouch.evaluation.suiterun import default_workers, run_cases
 
 #: (camera profile, distance m, tilt deg): the nominal cameras at 1 m, and two of the hard
 #: suite's placements (stereo 0.95 m, ToF 1.3 m)

@@ -26,7 +26,8 @@ from concurrent.futures import ProcessPoolExecutor
 import numpy as np
 
 from depthtouch.evaluation.halves import select_half
-from depthtouch.evaluation.suite import SuiteCase, default_workers, ensure_recording, load_suite
+from depthtouch.evaluation.suite import SuiteCase, ensure_recording, load_suite
+from depthtouch.evaluation.suiterun import default_workers
 from depthtouch.pipeline import Pipeline
 from depthtouch.sources import open_source
 

@@ -93,7 +93,8 @@ def _add_eval(sub: argparse._SubParsersAction) -> None:
         import json
 
         from .errors import ConfigError
-        from .evaluation.suite import cache_root, eval_recording_command, eval_suite_command
+        from .evaluation.suite import cache_root
+        from .evaluation.suiterun import eval_recording_command, eval_suite_command
 
         cfg = _load_config(a.config)
         if a.half:

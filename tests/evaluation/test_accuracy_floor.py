@@ -18,12 +18,11 @@ from depthtouch.evaluation.metrics import Metrics, evaluate, summarize
 from depthtouch.evaluation.suite import (
     SuiteCase,
     ensure_recording,
-    group_metrics,
     load_suite,
     recording_paths,
-    run_cases,
     suite_from_dict,
 )
+from depthtouch.evaluation.suiterun import group_metrics, run_cases
 
 sim = pytest.importorskip("depthtouch.sim")
 
@@ -182,7 +181,7 @@ def test_cli_eval_of_a_recording_file_matches_the_in_memory_run(
 
     from depthtouch.cli import main
     from depthtouch.evaluation.metrics import truth_from_dict
-    from depthtouch.evaluation.suite import run_source
+    from depthtouch.evaluation.suiterun import run_source
     from depthtouch.sources import ArraySource, write_npz
 
     rec = sim.render_scene("taps", camera="kinect-v2", distance_m=1.0, seed=7)

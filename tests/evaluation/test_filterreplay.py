@@ -9,7 +9,8 @@ import pytest
 
 from depthtouch.config import FilterConfig, PipelineConfig
 from depthtouch.evaluation.filterreplay import FilterTap, record_case, replay, replay_events
-from depthtouch.evaluation.suite import SuiteCase, evaluate_case, run_source
+from depthtouch.evaluation.suite import SuiteCase
+from depthtouch.evaluation.suiterun import evaluate_case, run_source
 from depthtouch.sim import render_scene
 from depthtouch.sources.base import ArraySource
 from depthtouch.tracking.filters import make_filter

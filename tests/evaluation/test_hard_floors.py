@@ -14,7 +14,8 @@ from typing import Any
 import pytest
 
 from depthtouch.evaluation.halves import DRIFT_TAG, FAR_TAG, HELD_OUT, figures, select_half
-from depthtouch.evaluation.suite import cache_root, load_suite, run_cases
+from depthtouch.evaluation.suite import cache_root, load_suite
+from depthtouch.evaluation.suiterun import run_cases
 
 pytest.importorskip("depthtouch.sim")
 

@@ -31,8 +31,18 @@ from ..sources.base import ArraySource
 from ..surface.surface import Surface
 from ..tracking.filters import TouchFilter, make_filter
 from ..types import FrameResult, TouchEvent
-from .metrics import GATE_MM, EvalResult, Metrics, Truth, evaluate, summarize, truth_from_dict
-from .suite import SuiteCase, default_workers
+from .metrics import (
+    GATE_MM,
+    EvalResult,
+    Metrics,
+    Truth,
+    evaluate,
+    read_truth,
+    summarize,
+    truth_from_dict,
+)
+from .suite import SuiteCase
+from .suiterun import default_workers
 
 
 @dataclass
@@ -103,7 +113,7 @@ def record_case(case: SuiteCase, config: PipelineConfig | None = None,
     sink = _Scales(pipeline.surface)
     if cache is not None:
         from ..sources import open_source
-        from .suite import ensure_recording, read_truth
+        from .suite import ensure_recording
 
         rec_path, truth_path = ensure_recording(case, cache)
         truth = read_truth(truth_path)

@@ -179,7 +179,7 @@ def _run_sensor(source: Any, config: Any) -> tuple[list[TouchEvent], float | Non
     intrinsics)."""
     from ..driver import drive
     from ..pipeline import Pipeline
-    from .suite import EventCollector
+    from .suiterun import EventCollector
 
     pipe, collect = Pipeline(config), EventCollector()
     drive(source, pipe, [collect])

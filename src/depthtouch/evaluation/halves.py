@@ -29,15 +29,8 @@ from ..config import PipelineConfig
 from ..errors import ConfigError
 from .bootstrap import COMPARE_KEYS, bootstrap_intervals, check_resamples, paired_intervals
 from .metrics import EvalResult, summarize
-from .suite import (
-    Suite,
-    SuiteCase,
-    check_group_key,
-    default_workers,
-    load_suite,
-    run_cases,
-    run_grid,
-)
+from .suite import Suite, SuiteCase, load_suite
+from .suiterun import check_group_key, default_workers, run_cases, run_grid
 
 if TYPE_CHECKING:  # pragma: no cover
     from rich.table import Table
@@ -156,7 +149,7 @@ def halves_report(suite: Suite, cases: Sequence[SuiteCase],
                   ci: int = 0) -> dict[str, Any]:
     """Both halves side by side: ``{"overall": {half: figures}, "by": by, "situations": {name:
     {half: figures}}}`` over the given cases (one result per case, in order). The rows of
-    ``situations`` pool the cases by ``by`` (one of :data:`suite.GROUP_KEYS`): their suite group (the
+    ``situations`` pool the cases by ``by`` (one of :data:`suiterun.GROUP_KEYS`): their suite group (the
     situation, default), scene, camera, label, distance or surface; ``all`` gives no rows.
     ``ci`` > 0: each overall half also gets ``"ci95"``, the 95 % bootstrap interval over its
     recordings of each measure of :data:`bootstrap.CI_KEYS` (``ci`` resamples)."""

@@ -26,7 +26,7 @@ from ..sim.multiview import MultiViewRecording, ViewPose, render_views
 from ..sources.base import ArraySource
 from ..types import TouchEvent
 from .metrics import Metrics, evaluate, summarize, truth_from_dict
-from .suite import EventCollector
+from .suiterun import EventCollector
 
 
 @dataclass(frozen=True)

@@ -252,7 +252,7 @@ def _run_scene(
     from ..sim import render_scene
     from ..sources.base import ArraySource
     from .metrics import truth_from_dict
-    from .suite import EventCollector
+    from .suiterun import EventCollector
 
     rec = render_scene(scene, camera=camera, distance_m=distance_m, seed=seed)
     truth = truth_from_dict(rec.truth, f"{scene} truth")
