@@ -20,19 +20,21 @@ import numpy as np
 
 #: the fields whose first column the kernel is given, in this order
 FIELD_ORDER = ("p", "v", "dx", "e", "z1", "z2", "nz", "sd", "q0", "qt", "qtt", "qx", "qtx",
-               "m", "n", "r2", "land", "ls", "hx", "hy", "ht", "gx", "gy", "mv")
+               "m", "n", "r2", "land", "ls", "hx", "hy", "ht", "gx", "gy", "mv", "pm", "pn",
+               "pr2", "pt")
 #: the parameters the kernel reads, in this order
 PARAM_ORDER = ("min_cutoff_hz", "half_weight_mm", "rest_cutoff_hz", "rest_mm_s", "beta_per_mm",
                "speed_cutoff_hz", "hold_mm", "lock_mm", "lock_frames", "lock_mean_frames",
                "lock_mm_s", "lock_sigmas", "noise_mm", "noise_s", "land_frames",
                "land_blend_sigmas", "land_sigmas", "land_restart_frames", "land_restart_sigmas",
-               "reland_frames", "reland_sigmas", "reland_mm_s")
+               "reland_frames", "reland_sigmas", "reland_mm_s", "lock_resume_frames")
 
 (_P, _V, _DX, _E, _Z1, _Z2, _NZ, _SD, _Q0, _QT, _QTT, _QX, _QTX, _M, _N, _R2, _LAND, _LS,
- _HX, _HY, _HT, _GX, _GY, _MV) = range(len(FIELD_ORDER))
+ _HX, _HY, _HT, _GX, _GY, _MV, _PM, _PN, _PR2, _PT) = range(len(FIELD_ORDER))
 (_MIN_CUT, _HALF_W, _REST_CUT, _REST_MM_S, _BETA, _SPEED_CUT, _HOLD, _LOCK_MM, _LOCK_FRAMES,
  _LOCK_MEAN, _LOCK_MM_S, _LOCK_SIG, _NOISE_MM, _NOISE_S, _LAND_FRAMES, _LAND_BLEND, _LAND_SIG,
- _RESTART_FRAMES, _RESTART_SIG, _RELAND_FRAMES, _RELAND_SIG, _RELAND_MM_S) = range(len(PARAM_ORDER))
+ _RESTART_FRAMES, _RESTART_SIG, _RELAND_FRAMES, _RELAND_SIG, _RELAND_MM_S,
+ _RESUME_FRAMES) = range(len(PARAM_ORDER))
 
 
 @numba.njit(cache=True, nogil=True, inline="always")
@@ -232,10 +234,24 @@ def euro_step(s: np.ndarray, xy: np.ndarray, dt_s: np.ndarray, prm: np.ndarray,
         if stay and (x - mx) ** 2 + (y - my) ** 2 <= 4.0 * r2:
             n = min(n + 1.0, prm[_LOCK_MEAN])
             mx, my = mx + (x - mx) / max(n, 1.0), my + (y - my) / max(n, 1.0)
-        if n <= 0.0 and still:  # a new lock starts from the output so far
-            mx, my = ex, ey
-            r2 = max(prm[_LOCK_MM], prm[_LOCK_SIG] * sd) ** 2
-            n = min(lock_frames, prm[_LOCK_MEAN])
+        # a lock that ends is remembered for a quick return, unless one that ended a few frames
+        # ago still is (a lock entered during an excursion must not take its place)
+        fresh = row[c[_PN]] > 0.0 and row[c[_PT]] <= prm[_RESUME_FRAMES]
+        if n > 0.0 and not stay and not fresh:
+            row[c[_PM]], row[c[_PM] + 1], row[c[_PN]], row[c[_PR2]] = mx, my, n, r2
+            row[c[_PT]] = 0.0
+        else:
+            row[c[_PT]] += 1.0
+        if n <= 0.0 and still:
+            pmx, pmy = row[c[_PM]], row[c[_PM] + 1]
+            if (row[c[_PN]] > 0.0 and row[c[_PT]] <= prm[_RESUME_FRAMES]
+                    and (medx - pmx) ** 2 + (medy - pmy) ** 2 <= row[c[_PR2]]):
+                # back within the lock it left a few frames ago: that lock again
+                mx, my, n, r2 = pmx, pmy, row[c[_PN]], row[c[_PR2]]
+            else:  # a new lock starts from the output so far
+                mx, my = ex, ey
+                r2 = max(prm[_LOCK_MM], prm[_LOCK_SIG] * sd) ** 2
+                n = min(lock_frames, prm[_LOCK_MEAN])
         elif not stay:
             n = 0.0
         row[c[_M]], row[c[_M] + 1], row[c[_N]], row[c[_R2]] = mx, my, n, r2
