@@ -301,6 +301,18 @@ class TrackingConfig:
         contact lost up to 22; range [0, 100], 0 turns the test off).
     up_frames: frames a contact may be missing before ``up`` (grace, default 3, >= 1): bridges
         the frame or two in which fingertips side by side merge into one region.
+    up_held_frames, held_gaps, held_step_mm, held_near_mm: the grace of a flickering contact.
+        Where the tip sits at the band's edge (stereo beyond 1 m), a held finger's region comes
+        and goes, and each gap of ``up_frames`` ended the touch: a long press broke into
+        several. A contact down whose point has already come back after missing frames
+        ``held_gaps`` times (default 2; a clean touch keeps the plain grace, and its lift is not
+        delayed), whose smoothed velocity is under ``held_step_mm`` per frame (default 4 mm:
+        120 mm/s at 30 fps, not a swipe that leaves the surface), and whose point vanished with
+        no raised point (too high to continue a contact) within ``held_near_mm`` (default
+        15 mm) of it, may be missing ``up_held_frames`` frames before ``up``. 0 (the default)
+        turns it off; it needs the camera's intrinsics (ranges [0, 300] frames, [1, 1e5],
+        [0, 1000] mm, [0, 1000] mm). Measured with 6 frames and ``held_gaps`` 3 and left off
+        (docs/config.md; docs/accuracy.md section 7, session 37).
     merge_mm: a missing contact within this distance of a contact seen this frame is taken as
         merged into its neighbour's region (fingertips side by side), not lifted (default 25 mm;
         half of it in px when K is unknown).
@@ -426,6 +438,10 @@ class TrackingConfig:
     step_max_mm: float = 80.0
     flat_max_mm: float = 10.0
     up_frames: int = 3
+    up_held_frames: int = 0
+    held_gaps: int = 2
+    held_step_mm: float = 4.0
+    held_near_mm: float = 15.0
     merge_mm: float = 25.0
     merge_frames: int = 10
     merge_area_ratio: float = 1.5
@@ -458,6 +474,10 @@ class TrackingConfig:
         _range("tracking.gate_px", self.gate_px, 0.0, 1000.0, lo_open=True)
         _range("tracking.down_frames", self.down_frames, 1, 30)
         _range("tracking.up_frames", self.up_frames, 1, 30)
+        _range("tracking.up_held_frames", self.up_held_frames, 0, 300)
+        _range("tracking.held_gaps", self.held_gaps, 1, 100000)
+        _range("tracking.held_step_mm", self.held_step_mm, 0.0, 1000.0)
+        _range("tracking.held_near_mm", self.held_near_mm, 0.0, 1000.0)
         _range("tracking.tip_area_min_mm2", self.tip_area_min_mm2, 0.0, 10000.0)
         _range("tracking.tip_area_max_mm2", self.tip_area_max_mm2, self.tip_area_min_mm2, 1e5)
         _range("tracking.tip_area_min_px", self.tip_area_min_px, 0.0, 10000.0)

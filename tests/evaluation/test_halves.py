@@ -354,3 +354,20 @@ def test_suite_pitches_key_multiplies_cases_labels_and_renders_them() -> None:
                         ([], "pitches_deg must be a non-empty list")):
         with pytest.raises(ConfigError, match=needle.replace("[", r"\[").replace("]", r"\]")):
             suite_from_dict({"group": [{**doc["group"][0], "pitches_deg": bad}]})
+
+
+def test_fourth_check_set_has_its_own_seeds_and_placements_and_both_hands() -> None:
+    """hard-fresh4: hard's scenes at placements and seeds no other suite uses, every group with
+    both hand models."""
+    from depthtouch.evaluation.suite import SUITES_DIR
+
+    others = [load_suite(p.stem).cases for p in SUITES_DIR.glob("*.toml")
+              if p.stem != "hard-fresh4"]
+    cases = load_suite("hard-fresh4").cases
+    assert len(cases) == 56
+    assert not {c.seed for c in cases} & {c.seed for cs in others for c in cs}
+    assert not {placement(c) for c in cases} & {placement(c) for cs in others for c in cs}
+    assert {c.scene for c in cases} == {c.scene for c in load_suite("hard").cases}
+    for g in {c.group for c in cases}:
+        assert {c.hand for c in cases if c.group == g} == {"capsule", "anatomic"}
+    assert select_half(cases, "tune") and select_half(cases, "held-out")

@@ -659,3 +659,54 @@ def test_doubt_restarts_with_each_frame_of_evidence_and_the_point_starts_over() 
     assert states[7] == [(1, "up")]                         # 3 frames in a row: up
     assert states[8:12] == [[]] * 4                         # the edge gives no evidence
     assert states[12:] == [[], [(2, "down")]]               # a tip again: a new touch
+
+
+def _held_then(gap: list[TouchPoints], flicker: bool = True,
+               **kw: object) -> list[list[tuple[int, str]]]:
+    """A contact held 8 frames at (100, 100) (1 mm per px; with ``flicker``, its point missing in
+    two single frames of them), then the frames of ``gap``, then the finger seen again where it
+    was; returns the updates of the gap and the frame after."""
+    cfg = _cfg(down_frames=1, up_frames=3, **kw)
+    tr = Tracker(cfg, scale_mm_per_px=1.0)
+    seen = [pts((100.0 + 0.5 * (k % 2), 100.0, 5.0)) for k in range(8)]
+    if flicker:
+        seen[2] = seen[5] = pts()
+    run(tr, seen)
+    return run(tr, [*gap, pts((100.0, 100.0, 5.0))])
+
+
+def test_a_held_contact_whose_region_flickers_keeps_its_id() -> None:
+    """A held finger whose region has come and gone (a tip at the band's edge) missing for 5
+    frames: with the held grace (8 frames) it stays down under its id; without it, it goes up
+    after 3 and comes back as a new touch."""
+    gap = [pts()] * 5
+    held = _held_then(gap, up_held_frames=8, held_gaps=2)
+    assert [u for f in held for u in f] == [(1, "move")] * 6
+    plain = _held_then(gap)
+    assert plain[2] == [(1, "up")] and plain[-1] == [(2, "down")]
+
+
+def test_a_held_contact_lifted_or_moving_or_clean_gets_the_plain_grace() -> None:
+    """The held grace does not apply when a raised point lies near the contact (its finger,
+    lifting), to a contact whose point never flickered (fewer than held_gaps returns: a clean
+    touch's lift is not delayed), or to one moving faster than held_step_mm per frame."""
+    lifted = _held_then([pts((100.0, 101.0, 40.0))] * 5, up_held_frames=8, held_gaps=2)
+    assert lifted[2] == [(1, "up")]
+    clean = _held_then([pts()] * 5, flicker=False, up_held_frames=8, held_gaps=1)
+    assert clean[2] == [(1, "up")]
+    few = _held_then([pts()] * 5, up_held_frames=8, held_gaps=3)
+    assert few[2] == [(1, "up")]
+    cfg = _cfg(down_frames=1, up_frames=3, up_held_frames=8, held_gaps=2)
+    tr = Tracker(cfg, scale_mm_per_px=1.0)
+    moving = [pts((100.0 + 6.0 * k, 100.0, 5.0)) for k in range(8)]  # 6 mm per frame
+    moving[2] = moving[5] = pts()
+    run(tr, moving)
+    assert run(tr, [pts()] * 3)[2] == [(1, "up")]
+
+
+def test_the_held_grace_needs_the_scale() -> None:
+    tr = Tracker(_cfg(down_frames=1, up_frames=3, up_held_frames=8, held_gaps=1))
+    seen = [pts((100.0, 100.0, 5.0)) for _ in range(8)]
+    seen[2] = seen[5] = pts()
+    run(tr, seen)
+    assert run(tr, [pts()] * 3)[2] == [(1, "up")]

@@ -1,5 +1,6 @@
 """Lift test: a contact whose finger's core rises above the same contact's own earlier frames
-has lifted, even where its measured tip height has not.
+has lifted, even where its measured tip height has not. And the other side: how long a contact
+whose point vanished may stay down (:func:`held_grace`).
 
 At ToF range the measured tip height of a finger hovering 15 mm up is as low as a touching
 tip's (the lowest pixels of the tip cap are the mixed pixels of its outline, between finger and
@@ -25,6 +26,8 @@ import math
 from bisect import bisect_left, insort
 from collections import deque
 from dataclasses import dataclass, field
+
+from ..config import TrackingConfig
 
 # the median of this many last core heights (one frame's is noisy)
 RECENT = 3
@@ -77,3 +80,23 @@ class CoreHistory:
         self.recent.clear()
         self.order.clear()
         self.ranked.clear()
+
+
+def held_grace(cfg: TrackingConfig, gaps: int, vel: tuple[float, float], at: tuple[float, float],
+               points: list[tuple[float, float]], low: list[bool]) -> int:
+    """Frames a contact down whose point is missing this frame may stay missing before ``up``
+    (pure): ``cfg.up_frames``, or ``cfg.up_held_frames`` for a held contact whose point
+    flickers (TrackingConfig.up_held_frames): its point came back after missing frames
+    ``gaps`` times (at least ``held_gaps``), its smoothed velocity ``vel`` (mm per frame) is
+    under ``held_step_mm``, and no raised point (``low`` False: too high to continue a
+    contact) of this frame's ``points`` (mm) lies within ``held_near_mm`` of it (``at``, mm):
+    a finger lifting shows there. The caller applies it only where mm are known."""
+    if (cfg.up_held_frames <= cfg.up_frames or gaps < cfg.held_gaps
+            or math.hypot(*vel) > cfg.held_step_mm):
+        return cfg.up_frames
+    near = cfg.held_near_mm
+    x, y = at
+    for (px, py), ok in zip(points, low, strict=True):
+        if not ok and abs(px - x) <= near and abs(py - y) <= near:
+            return cfg.up_frames  # its finger is there, above the surface: lifted
+    return cfg.up_held_frames

@@ -43,7 +43,7 @@ from ..config import TouchPointConfig, TrackingConfig
 from ..types import TouchPoints, TouchState
 from .evidence import XY, evidence_weights, steep_tips
 from .framerate import FrameRate
-from .lift import CoreHistory
+from .lift import CoreHistory, held_grace
 
 _BIG = 1e9
 # a pending contact a contact that is down yields a point to (TrackingConfig.yield_ratio): seen
@@ -78,6 +78,7 @@ class Track:
     merged: int = 0  # consecutive frames hidden in a neighbour's region
     evidence: float = 0.0  # pending: frames of touch seen, each weighted by how tip-like it was
     doubt: int = 0  # down: consecutive frames whose point gave no evidence of a touch
+    gaps: int = 0  # down: how often its point came back after missing frames
     offset_px: XY = (0.0, 0.0)
     offset_dir: XY = (0.0, 0.0)  # the smoothed direction of offset_px (0, 0: none yet)
     core: CoreHistory | None = None  # its finger's core heights (TrackingConfig.lift_core_mm)
@@ -318,6 +319,7 @@ class Tracker:
                 t.height_mm, t.area_px = float(h[j]), int(area[j])
                 t.hand_at_border = border[j]
                 t.seen += 1
+                t.gaps += t.active and t.missing > 0
                 t.missing = 0
                 t.merged = 0
                 t.evidence += w_j
@@ -346,7 +348,8 @@ class Tracker:
                     keep.append(t)
                     continue
                 t.missing += 1
-                if t.missing >= cfg.up_frames:
+                if t.missing >= (held_grace(self.config, t.gaps, t.vel, t.pos, pos, ok_cont)
+                                 if self.scale_mm_per_px is not None else self.config.up_frames):
                     out.append(TrackUpdate(t, "up", False))
                 else:
                     out.append(TrackUpdate(t, "move", False))
