@@ -373,9 +373,9 @@ def test_fourth_check_set_has_its_own_seeds_and_placements_and_both_hands() -> N
     assert select_half(cases, "tune") and select_half(cases, "held-out")
 
 
-def test_held_stereo_check_set_repeats_the_held_fingers_on_new_seeds() -> None:
-    """hold-stereo: fingers held still on stereo at 1.05 and 1.15 m, both hands, seeds no other
-    suite uses, on both halves."""
+def test_held_stereo_check_set_repeats_the_held_fingers_at_new_placements() -> None:
+    """hold-stereo: fingers held still on stereo at 1.05 and 1.15 m, both hands, at placements
+    no other suite uses (so no recording of another suite), on both halves."""
     from depthtouch.evaluation.suite import SUITES_DIR
 
     cases = load_suite("hold-stereo").cases
@@ -383,7 +383,7 @@ def test_held_stereo_check_set_repeats_the_held_fingers_on_new_seeds() -> None:
     assert {(c.scene, c.camera) for c in cases} == {("stillholds", "realsense-d435-hard")}
     assert {c.distance_m for c in cases} == {1.05, 1.15}
     assert {c.hand for c in cases} == {"capsule", "anatomic"}
-    others = {c.seed for p in SUITES_DIR.glob("*.toml") if p.stem != "hold-stereo"
+    others = {placement(c) for p in SUITES_DIR.glob("*.toml") if p.stem != "hold-stereo"
               for c in load_suite(p.stem).cases}
-    assert not {c.seed for c in cases} & others
+    assert not {placement(c) for c in cases} & others
     assert select_half(cases, "tune") and select_half(cases, "held-out")
