@@ -4,7 +4,9 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from depthtouch.config import TouchPointConfig, TrackingConfig
+from depthtouch.tracking import assign as assign_mod
 from depthtouch.tracking import tracker as tracking
+from depthtouch.tracking.assign import gated_cost, gated_cost_array
 from depthtouch.tracking.tracker import Track, Tracker
 from depthtouch.types import TouchPoints
 
@@ -248,8 +250,8 @@ def test_cost_in_floats_equals_cost_in_arrays(seed, n_t, n_p, scaled):
     pos = [(float(x), float(y)) for x, y in pos]
     ok_cont = (rng.random(n_p) < 0.9).tolist()
     ok_new = (rng.random(n_p) < 0.7).tolist()
-    floats = tr._cost(pos, ok_cont, ok_new)
-    arrays = tr._cost_array(pos, ok_cont, ok_new)
+    floats = gated_cost(tr.tracks, pos, ok_cont, ok_new, tr.gate, tr.gate_down)
+    arrays = gated_cost_array(tr.tracks, pos, ok_cont, ok_new, tr.gate, tr.gate_down)
     assert floats == arrays
 
 
@@ -275,7 +277,7 @@ def test_many_touches_same_tracks_with_floats_or_arrays(n, monkeypatch):
         return [[(u.track.id, u.state, u.track.xy_px) for u in tr.update(f)] for f in frames]
 
     default = replay()
-    monkeypatch.setattr(tracking, "_PY_COST_MAX", 0 if n < 10 else 10**6)
+    monkeypatch.setattr(assign_mod, "PY_COST_MAX", 0 if n < 10 else 10**6)
     assert replay() == default
     assert {i for f in default for i, _, _ in f} == set(range(1, n + 1))
 

@@ -1,8 +1,8 @@
 """Tracking: stable ids across frames, with down / move / up.
 
-Touch points are matched to tracks by optimal assignment (``scipy.optimize.linear_sum_assignment``)
-on their distance, gated (mm when the surface scale is known, px otherwise): contacts that are down
-first, then pending ones on the points left. Fingertips side by side whose regions merged into one
+Touch points are matched to tracks by optimal assignment on their distance (:mod:`.assign`),
+gated (mm when the surface scale is known, px otherwise): contacts that are down first, then
+pending ones on the points left. Fingertips side by side whose regions merged into one
 point (a region about twice a tip's area) keep their ids and move with that point, each at its
 place in the pair; a contact hidden in a neighbour's region is held. A new contact goes
 ``down`` once its evidence reaches ``down_frames``: frames, each counting 1 when its region has
@@ -37,22 +37,18 @@ from dataclasses import dataclass, field
 from typing import NamedTuple
 
 import numpy as np
-from scipy.optimize import linear_sum_assignment
 
 from ..config import TouchPointConfig, TrackingConfig
 from ..types import TouchPoints, TouchState
+from .assign import assign, gated_cost, nearest_index
 from .evidence import XY, evidence_weights, steep_tips
 from .framerate import FrameRate
 from .lift import CoreHistory, held_grace
 
-_BIG = 1e9
 # a pending contact a contact that is down yields a point to (TrackingConfig.yield_ratio): seen
 # in this many frames, with this much evidence
 YIELD_SEEN = 3
 YIELD_EVIDENCE = 1.0
-# cost matrices up to this many entries are built with floats, larger ones with arrays (the
-# break-even on one core: about 10 tracks x 10 points when they are close together)
-_PY_COST_MAX = 100
 
 
 @dataclass(slots=True)
@@ -111,33 +107,6 @@ def steer(prev_dir: XY, offset: XY, weight: float) -> tuple[XY, XY]:
         if nn > 1e-9:  # (opposite directions cancel: take the new one)
             ux, uy = nx / nn, ny / nn
     return (ux, uy), (mag * ux, mag * uy)
-
-
-def _nearest(row: list[float]) -> int:
-    """Index of the smallest entry, the first of equal ones (as ``np.argmin``)."""
-    return row.index(min(row))
-
-
-def _assign(
-    cost: list[list[float]], rows: list[int], cols: list[int], nearest: list[int]
-) -> dict[int, int]:
-    """Optimal assignment of tracks ``rows`` to points ``cols`` (increasing) on ``cost`` (pairs
-    < _BIG); ``nearest``: :func:`_nearest` of every row of ``cost``."""
-    if not rows or not cols:
-        return {}
-    if len(cols) == len(cost[0]):  # all the points
-        sub = [cost[r] for r in rows]
-        best = [nearest[r] for r in rows]
-    else:
-        sub = [[cost[r][c] for c in cols] for r in rows]
-        best = [_nearest(row) for row in sub]
-    if len(set(best)) == len(best):
-        # every track's nearest point is its own: that is the optimum (no assignment can cost
-        # less than each track's own minimum), found without the solver
-        return {r: cols[b] for r, b, row in zip(rows, best, sub, strict=True) if row[b] < _BIG}
-    ri, ci = linear_sum_assignment(np.array(sub))
-    return {rows[a]: cols[b] for a, b in zip(ri.tolist(), ci.tolist(), strict=True)
-            if sub[a][b] < _BIG}
 
 
 class TrackUpdate(NamedTuple):
@@ -234,14 +203,14 @@ class Tracker:
         matched_t: dict[int, int] = {}
         groups: dict[int, list[int]] = {}
         if n_t and n_p:
-            cost = self._cost(pos, ok_cont, ok_new)
+            cost = gated_cost(tracks, pos, ok_cont, ok_new, self.gate, self.gate_down)
             # Contacts that are down are served first, pending ones get what is left: optimal
             # assignment maximises the number of pairs, so in one joint assignment a noise blip
             # or a finger just arriving next to a contact could take the contact's point and
             # push it onto a farther one (or out, to come back with a new id).
-            nearest = [_nearest(row) for row in cost]
+            nearest = [nearest_index(row) for row in cost]
             act = [i for i, t in enumerate(tracks) if t.active]
-            matched_t = _assign(cost, act, list(range(n_p)), nearest)
+            matched_t = assign(cost, act, list(range(n_p)), nearest)
             contested = self._yield(cost, matched_t)
             groups = self._merge_groups(cost, nearest, matched_t, act, area)
             for members in groups.values():
@@ -251,7 +220,7 @@ class Tracker:
                 taken = {*matched_t.values(), *groups, *contested}
                 pending = [i for i, t in enumerate(tracks) if not t.active]
                 free = [j for j in range(n_p) if j not in taken]
-                matched_t.update(_assign(cost, pending, free, nearest))
+                matched_t.update(assign(cost, pending, free, nearest))
         out: list[TrackUpdate] = []
         keep: list[Track] = []
         used = set(matched_t.values()) | set(groups)
@@ -405,56 +374,6 @@ class Tracker:
                 del matched[i]
                 contested.add(j)
         return contested
-
-    def _cost(self, pos: list[XY], ok_cont: list[bool], ok_new: list[bool]) -> list[list[float]]:
-        """Gated distance of each track to each point (_BIG where it may not take the point).
-
-        The distance is to where the contact should be, or to where it was, whichever is nearer:
-        a sharp turn must not be lost to a prediction that overshoots. A contact down may take a
-        point below touch_off_mm, a pending one only below touch_on_mm.
-        """
-        if len(self.tracks) * len(pos) > _PY_COST_MAX:
-            return self._cost_array(pos, ok_cont, ok_new)
-        gates = (self.gate, self.gate_down)
-        sqrt = math.sqrt
-        cost: list[list[float]] = []
-        for t in self.tracks:
-            gate = gates[t.active]
-            # a point farther than this on one axis, from both the prediction and the last
-            # position, is beyond the gate: the margin keeps that exact through the rounding
-            far = gate * (1.0 + 1e-6)
-            lx, ly = t.pos
-            k = 1 + t.missing
-            px, py = lx + t.vel[0] * k, ly + t.vel[1] * k
-            row: list[float] = []
-            for (x, y), ok in zip(pos, ok_cont if t.active else ok_new, strict=True):
-                ax, bx = px - x, lx - x
-                ay, by = py - y, ly - y
-                if (not ok or (ax > far and bx > far) or (ax < -far and bx < -far)
-                        or (ay > far and by > far) or (ay < -far and by < -far)):
-                    row.append(_BIG)
-                    continue
-                a, b = ax * ax + ay * ay, bx * bx + by * by
-                d = sqrt(a if a <= b else b)
-                row.append(d if d <= gate else _BIG)
-            cost.append(row)
-        return cost
-
-    def _cost_array(
-        self, pos: list[XY], ok_cont: list[bool], ok_new: list[bool]
-    ) -> list[list[float]]:
-        """:meth:`_cost` in array operations: the same numbers, faster for many touches."""
-        last = np.array([t.pos for t in self.tracks])
-        pred = last + np.array([(t.vel[0] * (1 + t.missing), t.vel[1] * (1 + t.missing))
-                                for t in self.tracks])
-        p = np.array(pos)
-        dp, dl = pred[:, None, :] - p[None, :, :], last[:, None, :] - p[None, :, :]
-        dist = np.sqrt(np.minimum((dp * dp).sum(axis=2), (dl * dl).sum(axis=2)))
-        is_active = np.array([t.active for t in self.tracks])
-        allowed = np.where(is_active[:, None], np.array(ok_cont)[None, :], np.array(ok_new)[None, :])
-        gate = np.where(is_active, self.gate_down, self.gate)[:, None]
-        cost: list[list[float]] = np.where(allowed & (dist <= gate), dist, _BIG).tolist()
-        return cost
 
     def _merge_groups(
         self,
