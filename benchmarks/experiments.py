@@ -30,10 +30,11 @@ import numpy as np
 
 from depthtouch import __version__
 from depthtouch.config import PipelineConfig
-from depthtouch.evaluation.metrics import EvalResult, Metrics, summarize
+from depthtouch.evaluation.metrics import EvalResult
 from depthtouch.evaluation.report import metrics_markdown, plot_xy
 from depthtouch.evaluation.suite import SuiteCase, load_suite
 from depthtouch.evaluation.suiterun import group_metrics, run_cases, run_grid
+from depthtouch.evaluation.summary import Metrics, summarize
 
 CAMERAS = ("kinect-v2", "realsense-d435", "kinect-v1")
 ROOT = Path(__file__).resolve().parents[1]

@@ -22,8 +22,8 @@ from pathlib import Path
 from depthtouch.config import FilterConfig
 from depthtouch.evaluation.filterreplay import TrackRecord, record_cases, replay
 from depthtouch.evaluation.halves import placement, select_half
-from depthtouch.evaluation.metrics import summarize
 from depthtouch.evaluation.suite import cache_root, load_suite
+from depthtouch.evaluation.summary import summarize
 from depthtouch.tracking.filters import make_filter
 
 

@@ -15,9 +15,9 @@ import argparse
 from pathlib import Path
 
 from depthtouch.config import PipelineConfig
-from depthtouch.evaluation.metrics import summarize
 from depthtouch.evaluation.suite import SuiteCase
 from depthtouch.evaluation.suiterun import run_grid
+from depthtouch.evaluation.summary import summarize
 from depthtouch.tracking.filters import FILTERS
 
 ROOT = Path(__file__).resolve().parents[1]

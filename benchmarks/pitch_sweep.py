@@ -15,9 +15,10 @@ import argparse
 import itertools
 from collections import defaultdict
 
-from depthtouch.evaluation.metrics import EvalResult, summarize
+from depthtouch.evaluation.metrics import EvalResult
 from depthtouch.evaluation.suite import SuiteCase
 from depthtouch.evaluation.suiterun import default_workers, run_cases
+from depthtouch.evaluation.summary import summarize
 
 #: (camera profile, distance m, tilt deg): the nominal cameras at 1 m, and two of the hard
 #: suite's placements (stereo 0.95 m, ToF 1.3 m)

@@ -13,7 +13,8 @@ import pytest
 
 from depthtouch.calibration import Calibration, save_calibration
 from depthtouch.cli import main
-from depthtouch.evaluation.metrics import Metrics, evaluate, summarize, truth_from_dict
+from depthtouch.evaluation.metrics import evaluate, truth_from_dict
+from depthtouch.evaluation.summary import Metrics, summarize
 from depthtouch.fusion import in_screen
 from depthtouch.multicam import CameraFrame, MultiPipeline, merge_by_time
 from depthtouch.multilive import LiveMerge, NewestPerCamera

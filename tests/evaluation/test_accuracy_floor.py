@@ -14,7 +14,7 @@ from typing import Any
 import pytest
 
 from depthtouch.errors import ConfigError
-from depthtouch.evaluation.metrics import Metrics, evaluate, summarize
+from depthtouch.evaluation.metrics import evaluate
 from depthtouch.evaluation.suite import (
     SuiteCase,
     ensure_recording,
@@ -23,6 +23,7 @@ from depthtouch.evaluation.suite import (
     suite_from_dict,
 )
 from depthtouch.evaluation.suiterun import group_metrics, run_cases
+from depthtouch.evaluation.summary import Metrics, summarize
 
 sim = pytest.importorskip("depthtouch.sim")
 

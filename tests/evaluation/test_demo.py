@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from depthtouch.evaluation.metrics import Truth, evaluate, summarize, truth_from_dict
+from depthtouch.evaluation.metrics import Truth, evaluate, truth_from_dict
 from depthtouch.evaluation.report import (
     COLUMNS,
     metrics_html,
@@ -18,6 +18,7 @@ from depthtouch.evaluation.report import (
     plot_paths,
     table_rows,
 )
+from depthtouch.evaluation.summary import summarize
 from depthtouch.types import TouchEvent
 
 

@@ -15,10 +15,10 @@ from depthtouch.evaluation.metrics import (
     evaluate,
     match,
     read_truth,
-    summarize,
     surface_error_mm,
     truth_from_dict,
 )
+from depthtouch.evaluation.summary import summarize
 from depthtouch.types import TouchEvent
 from synth import result_of
 

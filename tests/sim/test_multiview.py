@@ -10,8 +10,8 @@ import pytest
 
 from depthtouch.calibration import Calibration
 from depthtouch.errors import ConfigError
-from depthtouch.evaluation.metrics import Metrics
 from depthtouch.evaluation.multiview import score_views
+from depthtouch.evaluation.summary import Metrics
 from depthtouch.fusion import view_polygon
 from depthtouch.sim.multiview import ViewPose, render_views
 from depthtouch.types import TouchEvent

@@ -31,18 +31,10 @@ from ..sources.base import ArraySource
 from ..surface.surface import Surface
 from ..tracking.filters import TouchFilter, make_filter
 from ..types import FrameResult, TouchEvent
-from .metrics import (
-    GATE_MM,
-    EvalResult,
-    Metrics,
-    Truth,
-    evaluate,
-    read_truth,
-    summarize,
-    truth_from_dict,
-)
+from .metrics import GATE_MM, EvalResult, Truth, evaluate, read_truth, truth_from_dict
 from .suite import SuiteCase
 from .suiterun import default_workers
+from .summary import Metrics, summarize
 
 
 @dataclass

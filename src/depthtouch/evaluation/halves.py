@@ -28,9 +28,10 @@ from typing import TYPE_CHECKING, Any
 from ..config import PipelineConfig
 from ..errors import ConfigError
 from .bootstrap import COMPARE_KEYS, bootstrap_intervals, check_resamples, paired_intervals
-from .metrics import EvalResult, summarize
+from .metrics import EvalResult
 from .suite import Suite, SuiteCase, load_suite
 from .suiterun import check_group_key, default_workers, run_cases, run_grid
+from .summary import summarize
 
 if TYPE_CHECKING:  # pragma: no cover
     from rich.table import Table

@@ -25,8 +25,9 @@ from ..pipeline import Pipeline
 from ..sim.multiview import MultiViewRecording, ViewPose, render_views
 from ..sources.base import ArraySource
 from ..types import TouchEvent
-from .metrics import Metrics, evaluate, summarize, truth_from_dict
+from .metrics import evaluate, truth_from_dict
 from .suiterun import EventCollector
+from .summary import Metrics, summarize
 
 
 @dataclass(frozen=True)

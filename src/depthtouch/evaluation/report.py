@@ -20,7 +20,8 @@ import numpy as np
 
 from ..errors import OutputError
 from ..types import FrameResult, TouchEvent
-from .metrics import EvalResult, Metrics, Truth, evaluate, summarize
+from .metrics import EvalResult, Truth, evaluate
+from .summary import Metrics, summarize
 
 if TYPE_CHECKING:
     from rich.table import Table

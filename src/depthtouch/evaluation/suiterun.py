@@ -16,8 +16,9 @@ from ..config import PipelineConfig
 from ..errors import ConfigError
 from ..sources.base import ArraySource, DepthSource
 from ..types import FrameResult, TouchEvent
-from .metrics import GATE_MM, EvalResult, Metrics, Truth, evaluate, read_truth, summarize
+from .metrics import GATE_MM, EvalResult, Truth, evaluate, read_truth
 from .suite import SuiteCase, ensure_recording, load_suite
+from .summary import Metrics, summarize
 
 
 # --- running -------------------------------------------------------------------------------------
