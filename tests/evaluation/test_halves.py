@@ -387,3 +387,19 @@ def test_held_stereo_check_set_repeats_the_held_fingers_at_new_placements() -> N
               for c in load_suite(p.stem).cases}
     assert not {placement(c) for c in cases} & others
     assert select_half(cases, "tune") and select_half(cases, "held-out")
+
+
+def test_pitch55_check_set_fixes_the_pitch_at_placements_of_its_own() -> None:
+    """pitch55: approaches at 55 deg, both hands, at placements and seeds no other suite uses,
+    on both halves."""
+    from depthtouch.evaluation.suite import SUITES_DIR
+
+    cases = load_suite("pitch55").cases
+    assert len(cases) == 16
+    assert {c.pitch_deg for c in cases} == {55.0} and {c.scene for c in cases} == {"approach"}
+    assert {c.hand for c in cases} == {"capsule", "anatomic"}
+    others = [c for p in SUITES_DIR.glob("*.toml") if p.stem != "pitch55"
+              for c in load_suite(p.stem).cases]
+    assert not {placement(c) for c in cases} & {placement(c) for c in others}
+    assert not {c.seed for c in cases} & {c.seed for c in others}
+    assert select_half(cases, "tune") and select_half(cases, "held-out")
