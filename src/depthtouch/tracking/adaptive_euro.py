@@ -392,18 +392,20 @@ class AdaptiveEuroFilter(FilterBase):
         # a lock that ends is remembered, unless one that ended a few frames ago still is (a
         # lock entered during an excursion must not take its place): a finger back within it
         # (a noise excursion of two or three frames, not a move) takes that lock again
-        pm, pn, pr2 = s[:, c["pm"]], s[:, c["pn"]][:, 0], s[:, c["pr2"]][:, 0]
-        pt = s[:, c["pt"]][:, 0]
-        fresh = (pn > 0) & (pt <= prm["lock_resume_frames"])
-        ends = (n > 0) & ~stay & ~fresh
-        pm = np.where(ends[:, None], m, pm)
-        pn, pr2 = np.where(ends, n, pn), np.where(ends, r2, pr2)
-        pt = np.where(ends, 0.0, pt + 1.0)
-        s[:, c["pm"]], s[:, c["pn"]], s[:, c["pr2"]], s[:, c["pt"]] = (
-            pm, pn[:, None], pr2[:, None], pt[:, None])
         enter = (n <= 0) & still
-        back = (enter & (pn > 0) & (pt <= prm["lock_resume_frames"])
-                & (np.sum((med - pm) ** 2, axis=1) <= pr2))
+        back = np.zeros_like(enter)
+        pm, pn, pr2 = s[:, c["pm"]], s[:, c["pn"]][:, 0], s[:, c["pr2"]][:, 0]
+        if prm["lock_resume_frames"] > 0:
+            pt = s[:, c["pt"]][:, 0]
+            fresh = (pn > 0) & (pt <= prm["lock_resume_frames"])
+            ends = (n > 0) & ~stay & ~fresh
+            pm = np.where(ends[:, None], m, pm)
+            pn, pr2 = np.where(ends, n, pn), np.where(ends, r2, pr2)
+            pt = np.where(ends, 0.0, pt + 1.0)
+            s[:, c["pm"]], s[:, c["pn"]], s[:, c["pr2"]], s[:, c["pt"]] = (
+                pm, pn[:, None], pr2[:, None], pt[:, None])
+            back = (enter & (pn > 0) & (pt <= prm["lock_resume_frames"])
+                    & (np.sum((med - pm) ** 2, axis=1) <= pr2))
         m = np.where(back[:, None], pm, np.where(enter[:, None], e, m))
         r2 = np.where(back, pr2, np.where(
             enter, np.maximum(prm["lock_mm"], prm["lock_sigmas"] * sd) ** 2, r2))

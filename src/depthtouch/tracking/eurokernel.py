@@ -159,6 +159,7 @@ def euro_step(s: np.ndarray, xy: np.ndarray, dt_s: np.ndarray, prm: np.ndarray,
     lock_on = prm[_LOCK_FRAMES] > 0.0
     land_on = prm[_LAND_FRAMES] > 0.0
     reland = prm[_RELAND_FRAMES] >= 2.0 and land_on
+    resume_on = prm[_RESUME_FRAMES] > 0.0 and lock_on
     lock_frames = max(prm[_LOCK_FRAMES], 2.0)  # a line needs two points
     frames = max(lock_frames, prm[_LAND_FRAMES])  # the sums' horizon (the landing reads them)
     keep = 1.0 - 1.0 / frames
@@ -234,17 +235,18 @@ def euro_step(s: np.ndarray, xy: np.ndarray, dt_s: np.ndarray, prm: np.ndarray,
         if stay and (x - mx) ** 2 + (y - my) ** 2 <= 4.0 * r2:
             n = min(n + 1.0, prm[_LOCK_MEAN])
             mx, my = mx + (x - mx) / max(n, 1.0), my + (y - my) / max(n, 1.0)
-        # a lock that ends is remembered for a quick return, unless one that ended a few frames
-        # ago still is (a lock entered during an excursion must not take its place)
-        fresh = row[c[_PN]] > 0.0 and row[c[_PT]] <= prm[_RESUME_FRAMES]
-        if n > 0.0 and not stay and not fresh:
-            row[c[_PM]], row[c[_PM] + 1], row[c[_PN]], row[c[_PR2]] = mx, my, n, r2
-            row[c[_PT]] = 0.0
-        else:
-            row[c[_PT]] += 1.0
+        if resume_on:
+            # a lock that ends is remembered for a quick return, unless one that ended a few
+            # frames ago still is (a lock entered during an excursion must not take its place)
+            fresh = row[c[_PN]] > 0.0 and row[c[_PT]] <= prm[_RESUME_FRAMES]
+            if n > 0.0 and not stay and not fresh:
+                row[c[_PM]], row[c[_PM] + 1], row[c[_PN]], row[c[_PR2]] = mx, my, n, r2
+                row[c[_PT]] = 0.0
+            else:
+                row[c[_PT]] += 1.0
         if n <= 0.0 and still:
             pmx, pmy = row[c[_PM]], row[c[_PM] + 1]
-            if (row[c[_PN]] > 0.0 and row[c[_PT]] <= prm[_RESUME_FRAMES]
+            if (resume_on and row[c[_PN]] > 0.0 and row[c[_PT]] <= prm[_RESUME_FRAMES]
                     and (medx - pmx) ** 2 + (medy - pmy) ** 2 <= row[c[_PR2]]):
                 # back within the lock it left a few frames ago: that lock again
                 mx, my, n, r2 = pmx, pmy, row[c[_PN]], row[c[_PR2]]

@@ -317,8 +317,8 @@ class Tracker:
                     keep.append(t)
                     continue
                 t.missing += 1
-                if t.missing >= (held_grace(self.config, t.gaps, t.vel, t.pos, pos, ok_cont)
-                                 if self.scale_mm_per_px is not None else self.config.up_frames):
+                if t.missing >= (held_grace(cfg, t.gaps, t.vel, t.pos, pos, ok_cont)
+                                 if self.scale_mm_per_px is not None else cfg.up_frames):
                     out.append(TrackUpdate(t, "up", False))
                 else:
                     out.append(TrackUpdate(t, "move", False))
