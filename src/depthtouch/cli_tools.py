@@ -295,6 +295,9 @@ def _add_sim(sub: argparse._SubParsersAction) -> None:
                    help="every lead finger at DEG to the surface [10, 85] instead of the "
                         "scene's random pitch (20-70 for most); the rest of the seed's scene "
                         "stays the same")
+    p.add_argument("--motion-ms", type=float, default=0.0, metavar="MS",
+                   help="ToF motion mixing: each frame integrated over the last MS ms [0, 50], "
+                        "so pixels a moving hand covers or uncovers read mixed depths")
     p.add_argument("--no-noise", action="store_true", help="exact geometry, no sensor noise")
     p.add_argument("--views", type=int, metavar="N",
                    help="N cameras (2-3) 0.8 m apart: --out is a folder of viewK.npz, "
@@ -313,6 +316,8 @@ def _add_sim(sub: argparse._SubParsersAction) -> None:
             raise ConfigError("--noise-scale applies to one camera; leave it out with --views")
         if a.views is not None and a.pitch is not None:
             raise ConfigError("--pitch applies to one camera; leave it out with --views")
+        if a.views is not None and a.motion_ms != 0.0:
+            raise ConfigError("--motion-ms applies to one camera; leave it out with --views")
         if a.views is not None:
             from .sim.multiview import default_poses, render_views, write_views
 
@@ -328,6 +333,7 @@ def _add_sim(sub: argparse._SubParsersAction) -> None:
             a.scene, camera=a.camera, distance_m=a.distance, tilt_deg=a.tilt,
             surface=a.surface, seed=a.seed, fps=a.fps, noise=not a.no_noise, hand=a.hand,
             resolution_scale=a.resolution_scale, pitch_deg=a.pitch, noise_scale=a.noise_scale,
+            motion_ms=a.motion_ms,
         )
         write_recording(rec, a.out, a.truth)
         if not a.quiet:

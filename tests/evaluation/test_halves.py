@@ -403,3 +403,23 @@ def test_pitch55_check_set_fixes_the_pitch_at_placements_of_its_own() -> None:
     assert not {placement(c) for c in cases} & {placement(c) for c in others}
     assert not {c.seed for c in cases} & {c.seed for c in others}
     assert select_half(cases, "tune") and select_half(cases, "held-out")
+
+
+def test_motion_check_set_mixes_every_tof_frame_at_placements_of_its_own() -> None:
+    """motion-tof: the hard ToF situations with 13 ms of motion mixing, both hands, at
+    placements and seeds no other suite uses, every situation on both halves."""
+    from depthtouch.evaluation.suite import SUITES_DIR
+
+    cases = load_suite("motion-tof").cases
+    assert len(cases) == 36
+    assert {c.motion_ms for c in cases} == {13.0} and {c.camera for c in cases} == {"kinect-v2-hard"}
+    assert {c.hand for c in cases} == {"capsule", "anatomic"}
+    assert all("/motion13/" in c.label for c in cases)
+    others = [c for p in SUITES_DIR.glob("*.toml") if p.stem != "motion-tof"
+              for c in load_suite(p.stem).cases]
+    assert not {placement(c) for c in cases} & {placement(c) for c in others}
+    assert not {c.seed for c in cases} & {c.seed for c in others}
+    assert all(c.motion_ms == 0.0 for c in others)  # no other suite changed
+    for group in {c.group for c in cases}:
+        mine = [c for c in cases if c.group == group]
+        assert select_half(mine, "tune") and select_half(mine, "held-out"), group

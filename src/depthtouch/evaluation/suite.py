@@ -16,6 +16,7 @@ group is a grid of scenes x cameras x distances x surfaces x tilts x hands x see
     tilts_deg = [0.0]              # default [0.0]
     hands = ["capsule"]            # default ["capsule"]; or "anatomic" (docs/simulator.md)
     pitches_deg = [60.0]           # optional: every lead finger at this pitch (default: drawn)
+    motion_ms = 12.0               # optional: ToF motion mixing over this span (default 0: none)
     seeds = [1]
     tags = ["quick"]               # optional: subsets a run may select
 
@@ -64,6 +65,7 @@ class SuiteCase:
 
     distance_m: camera to surface (m); tilt_deg: surface tilt (deg); fps: frame rate (Hz);
     pitch_deg: every lead finger at this angle to the surface (deg), None: the scene's own.
+    motion_ms: the span of the camera's raw exposures (ms; 0: none), see ``render_scene``.
     """
 
     scene: str
@@ -78,6 +80,7 @@ class SuiteCase:
     resolution_scale: float = 1.0
     pitch_deg: float | None = None
     noise_scale: float = 1.0
+    motion_ms: float = 0.0
 
     @property
     def label(self) -> str:
@@ -87,8 +90,9 @@ class SuiteCase:
         res = "" if self.resolution_scale == 1.0 else f"@x{self.resolution_scale:g}"
         pitch = "" if self.pitch_deg is None else f"/pitch{self.pitch_deg:g}"
         noise = "" if self.noise_scale == 1.0 else f"/noise{self.noise_scale:g}"
+        motion = "" if self.motion_ms == 0.0 else f"/motion{self.motion_ms:g}"
         return (f"{self.scene}/{self.camera}{res}/{self.distance_m:g}m{surf}{tilt}{hand}"
-                f"{pitch}{noise}/s{self.seed}")
+                f"{pitch}{noise}{motion}/s{self.seed}")
 
     def render_kwargs(self) -> dict[str, Any]:
         kw: dict[str, Any] = {"camera": self.camera, "distance_m": self.distance_m,
@@ -102,6 +106,8 @@ class SuiteCase:
             kw["pitch_deg"] = self.pitch_deg
         if self.noise_scale != 1.0:  # (absent at 1: the cache keys stay as they were)
             kw["noise_scale"] = self.noise_scale
+        if self.motion_ms != 0.0:  # (absent at 0: the cache keys stay as they were)
+            kw["motion_ms"] = self.motion_ms
         return kw
 
     def cache_key(self) -> str:
@@ -238,7 +244,7 @@ def suite_from_dict(data: dict[str, Any], where: str = "suite") -> Suite:
         gname = str(g.get("name", f"group{i}"))
         gw = f"{where}: group {gname}"
         known = {"name", "scenes", "cameras", "distances_m", "surfaces", "tilts_deg", "seeds",
-                 "fps", "tags", "hands", "pitches_deg"}
+                 "fps", "tags", "hands", "pitches_deg", "motion_ms"}
         unknown = sorted(set(g) - known)
         if unknown:
             raise ConfigError(
@@ -258,6 +264,7 @@ def suite_from_dict(data: dict[str, Any], where: str = "suite") -> Suite:
         if any(isinstance(s, bool) or not isinstance(s, int) or s < 0 for s in seeds):
             raise ConfigError(f"{gw}: seeds must be whole numbers >= 0")
         fps = _numbers([g.get("fps", 30.0)], "fps", gw, 1.0, 1000.0)[0]
+        motion = _numbers([g.get("motion_ms", 0.0)], "motion_ms", gw, 0.0, 50.0)[0]
         tags = g.get("tags", [])
         if not isinstance(tags, list) or not all(isinstance(t, str) for t in tags):
             raise ConfigError(f"{gw}: tags must be a list of names")
@@ -268,7 +275,7 @@ def suite_from_dict(data: dict[str, Any], where: str = "suite") -> Suite:
                         for tilt, hand, pitch, seed in itertools.product(tilts, hands, pitches,
                                                                          seeds):
                             c = SuiteCase(s, cam, d, surf, tilt, int(seed), fps, gname, hand,
-                                          pitch_deg=pitch)
+                                          pitch_deg=pitch, motion_ms=motion)
                             key = dataclasses.replace(c, group="")
                             cases.setdefault(key, (c, set()))[1].update(tags)
     ordered = [c for c, _ in cases.values()]

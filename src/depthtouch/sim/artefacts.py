@@ -16,6 +16,12 @@ model what the unseen recordings showed and the default profiles leave out:
   and a fingertip's end retreats: a median over ``window_px`` x ``window_px`` of the geometry;
 - **speckle holes** (stereo at range): small blobs (radius 1-3 px) with no depth, scattered over
   the frame; their number grows with the squared depth (fewer matches at range).
+- **motion mixing** (time of flight): a ToF frame is made of several raw exposures taken one
+  after the other, so a pixel that a moving hand covers or uncovers during them reads a depth
+  between the hand's and the surface's. :func:`exposure_mix` averages renders of the scene at
+  instants spread over the exposures, centred on the frame's timestamp
+  (``render_scene(motion_ms=...)``); the mix is linear in depth, a simplification of the phase
+  mixing a real sensor does.
 """
 
 from __future__ import annotations
@@ -96,3 +102,19 @@ def match_window(z: np.ndarray, window_px: int) -> np.ndarray:
         return z
     out: np.ndarray = cv2.medianBlur(np.ascontiguousarray(z, dtype=np.float32), window_px)
     return np.where(z > 0, out, np.float32(0.0)).astype(np.float32)
+
+
+def exposure_mix(subs: list[np.ndarray], box: tuple[int, int, int, int]) -> np.ndarray:
+    """The depth of a frame integrated over sub-exposures: the mean of ``subs`` (noise-free
+    float32 mm renders of one frame at instants spread over its exposures) inside ``box``
+    (x0, y0, x1, y1), where every sub-render has a depth; elsewhere the first. A new array;
+    the inputs are not changed."""
+    out = subs[0].copy()
+    x0, y0, x1, y1 = box
+    if x1 <= x0 or y1 <= y0 or len(subs) < 2:
+        return out
+    sl = (slice(y0, y1), slice(x0, x1))
+    stack = np.stack([z[sl] for z in subs])
+    seen = np.all(stack > 0, axis=0)
+    out[sl] = np.where(seen, stack.mean(axis=0, dtype=np.float32), out[sl])
+    return out

@@ -17,6 +17,7 @@ import numpy as np
 
 from ..errors import ConfigError, SourceError
 from ..files import write_text_atomic
+from .artefacts import exposure_mix
 from .cameras import NoiseModel, get_profile, scaled_profile
 from .geometry import Primitive, Rays, Surface, make_surface, render_primitives, rotation_xyz
 from .hand import FINGERS, HAND_STYLES, build_hand
@@ -109,6 +110,7 @@ def render_scene(
     resolution_scale: float = 1.0,
     pitch_deg: float | None = None,
     noise_scale: float = 1.0,
+    motion_ms: float = 0.0,
 ) -> SimRecording:
     """Render ``scene`` (see :data:`~depthtouch.sim.SCENES`) as seen by ``camera``.
 
@@ -128,6 +130,12 @@ def render_scene(
     noise_scale: the camera's axial noise (sigma, and the range a hard profile draws it from)
     times this, [0.25, 4] (default 1); the seed's draws stay the same, the artefacts (flying
     and mixed pixels, multipath, holes) too.
+    motion_ms: the span of the camera's raw exposures, [0, 50] ms (default 0: none). A pixel
+    that a moving hand covers or uncovers within it reads a depth between the hand's and what
+    lies behind (a time-of-flight camera's motion artefact; sim/artefacts.py): each frame is
+    the mean of renders at 4 instants spread over ``motion_ms`` centred on its timestamp (as a
+    camera stamps a frame at the middle of its exposure), with or without noise; the truth is
+    the timestamp's.
     Unknown names or out-of-range values raise ConfigError naming the valid ones.
     """
     if not (isinstance(resolution_scale, (int, float)) and 0.25 <= resolution_scale <= 3.0):
@@ -135,6 +143,8 @@ def render_scene(
                           "allowed [0.25, 3]")
     if not (isinstance(noise_scale, (int, float)) and 0.25 <= noise_scale <= 4.0):
         raise ConfigError(f"noise_scale {noise_scale!r} is out of range; allowed [0.25, 4]")
+    if not (isinstance(motion_ms, (int, float)) and 0.0 <= motion_ms <= 50.0):
+        raise ConfigError(f"motion_ms {motion_ms!r} is out of range; allowed [0, 50]")
     profile = scaled_profile(get_profile(camera), float(resolution_scale))
     if noise_scale != 1.0:
         lo_n, hi_n = profile.noise_scale_range
@@ -179,6 +189,9 @@ def render_scene(
         if bumped:
             prims = [p.rotated(R) for p in prims]
         box = render_primitives(rays, prims, zbuf, labels)
+        if motion_ms > 0:
+            zbuf, box = _exposures(script, surf_w, R if bumped else None, rays, cache[1], t,
+                                   motion_ms / 1000.0)
         if first_busy is None and box is not None:
             first_busy = i
         items = _truth_items(items_3d, R, rays, labels)
@@ -195,6 +208,32 @@ def render_scene(
                      script, truth, n if first_busy is None else first_busy)
     return SimRecording(depth, np.arange(n, dtype=np.float64) / fps, 0.001, rays.K.copy(), doc,
                         labels_out)
+
+
+_SUB_EXPOSURES = 4
+
+
+def _exposures(script: Script, surf: Surface, R: np.ndarray | None, rays: Rays,
+               static: np.ndarray, t: float, span_s: float
+               ) -> tuple[np.ndarray, tuple[int, int, int, int] | None]:
+    """The frame at ``t`` integrated over ``span_s`` centred on it (see ``motion_ms``): the
+    depth and the box that holds every change from ``static``."""
+    subs: list[np.ndarray] = []
+    union: tuple[int, int, int, int] | None = None
+    scratch = np.zeros(static.shape, np.uint8)
+    for k in range(_SUB_EXPOSURES):
+        zk = static.copy()
+        prims, _ = assemble_scene(script, surf, t + span_s * (k / (_SUB_EXPOSURES - 1) - 0.5))
+        if R is not None:
+            prims = [p.rotated(R) for p in prims]
+        bk = render_primitives(rays, prims, zk, scratch)
+        if bk is not None:
+            union = bk if union is None else (min(union[0], bk[0]), min(union[1], bk[1]),
+                                               max(union[2], bk[2]), max(union[3], bk[3]))
+        subs.append(zk)
+    if union is None:
+        return subs[0], None
+    return exposure_mix(subs, union), union
 
 
 def assemble_scene(script: Script, surf: Surface, t: float
