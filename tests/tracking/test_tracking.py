@@ -712,3 +712,29 @@ def test_the_held_grace_needs_the_scale() -> None:
     seen[2] = seen[5] = pts()
     run(tr, seen)
     assert run(tr, [pts()] * 3)[2] == [(1, "up")]
+
+
+@pytest.mark.parametrize(("step_mm", "limit_mm", "downs"), [
+    (30.0, 0.0, 1),   # off: a point sliding 30 mm a frame goes down as any other
+    (30.0, 20.0, 0),  # sliding faster than the limit: no evidence while it slides
+    (10.0, 20.0, 1),  # a landing finger that creeps: down as before
+])
+def test_a_pending_contact_arriving_sliding_gains_no_evidence(step_mm: float, limit_mm: float,
+                                                              downs: int) -> None:
+    tr = Tracker(_cfg(down_frames=2, pending_step_max_mm=limit_mm, gate_mm=40.0),
+                 scale_mm_per_px=1.0)
+    frames = [pts((100.0 + step_mm * k, 50.0, 3.0)) for k in range(6)]
+    states = [s for f in run(tr, frames) for _, s in f]
+    assert states.count("down") == downs
+
+
+def test_a_sliding_contact_goes_down_once_it_stops_and_a_touch_down_keeps_its_drag() -> None:
+    tr = Tracker(_cfg(down_frames=2, pending_step_max_mm=20.0, gate_mm=40.0),
+                 scale_mm_per_px=1.0)
+    xs = [0.0, 30.0, 60.0, 62.0, 63.0, 95.0, 128.0]  # slides, stops, then drags fast
+    out = run(tr, [pts((100.0 + x, 50.0, 3.0)) for x in xs])
+    assert [s for f in out for _, s in f] == ["down", "move", "move", "move"]
+    assert out[3] == [(1, "down")]  # on the second slow frame; the drag after it keeps its id
+    # without intrinsics the limit does not apply (the gate is in pixels then)
+    tr = Tracker(_cfg(down_frames=2, pending_step_max_mm=20.0), scale_mm_per_px=None)
+    assert run(tr, [pts((100.0 + x, 50.0, 3.0)) for x in (0.0, 22.0)])[1] == [(1, "down")]

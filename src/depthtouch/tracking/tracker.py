@@ -232,6 +232,9 @@ class Tracker:
                 shift[i] = (k, step)
         cfg, low_mm = self.config, self._pending_low_mm()
         down_frames = cfg.down_frames
+        # how far a pending contact's point may move in a frame and still count (0: any)
+        slide_mm = (cfg.pending_step_max_mm * self._rate.gate
+                    if self.scale_mm_per_px is not None else 0.0)
         weight = evidence_weights(points, xy, area, ok_new, steep, self.scale_mm_per_px, cfg)
         # in a stream faster than reference_fps, a contact's first frame counts as one
         # reference frame and each further frame as its length: its evidence is how long it
@@ -280,6 +283,8 @@ class Tracker:
                     w_j = 0.0  # a pending contact whose core rose: not a touch this frame
                 m = 1 + t.missing
                 (vx, vy), (ox, oy), (px, py) = t.vel, t.pos, pos[j]
+                if not t.active and slide_mm > 0 and math.hypot(px - ox, py - oy) > slide_mm * m:
+                    w_j = 0.0  # a pending contact arriving sliding: no evidence this frame
                 # smoothed velocity, from rest: a noisy touch point (or, just after touch-down, a
                 # neighbour's tip arriving in the region) must not throw the prediction off
                 t.vel = (0.5 * vx + 0.5 * ((px - ox) / m), 0.5 * vy + 0.5 * ((py - oy) / m))
