@@ -738,3 +738,21 @@ def test_a_sliding_contact_goes_down_once_it_stops_and_a_touch_down_keeps_its_dr
     # without intrinsics the limit does not apply (the gate is in pixels then)
     tr = Tracker(_cfg(down_frames=2, pending_step_max_mm=20.0), scale_mm_per_px=None)
     assert run(tr, [pts((100.0 + x, 50.0, 3.0)) for x in (0.0, 22.0)])[1] == [(1, "down")]
+
+
+@pytest.mark.parametrize(("attach_mm", "downs"), [
+    (45.0, 0),        # under a raised hand (a mixed strip): no evidence while it slides
+    (27.0, 1),        # a finger rising from its tip as a touching one does: down as before
+    (float("nan"), 0),  # the height behind it unknown: the rule applies
+])
+def test_sliding_counts_against_a_point_only_under_a_raised_hand(attach_mm: float,
+                                                                 downs: int) -> None:
+    tr = Tracker(_cfg(down_frames=2, pending_step_max_mm=20.0, pending_step_attach_mm=33.0,
+                      gate_mm=40.0), scale_mm_per_px=1.0)
+    frames = []
+    for k in range(6):
+        p = pts((100.0 + 30.0 * k, 50.0, 3.0))
+        frames.append(TouchPoints(p.xy_px, p.height_mm, p.area_px, p.hand_xy_px,
+                                  attach_height_mm=np.array([attach_mm])))
+    states = [s for f in run(tr, frames) for _, s in f]
+    assert states.count("down") == downs

@@ -102,13 +102,16 @@ class TrackingConfig:
         (docs/config.md; docs/accuracy.md section 7, session 37).
     pending_step_max_mm: a contact not yet down whose point moved farther than this since it
         was last seen (per frame: twice this after a missing frame; grown with ``gate_fps``
-        like the gate) gains no evidence in that frame: a finger lands, it seldom arrives
-        sliding. What arrives sliding is the strip of mixed depths along the edge of a low
-        hand sweeping past a time-of-flight camera (its raw exposures see hand, then
-        surface), and a finger still hovering on its way down. Default 0: off; needs the
-        camera's intrinsics (range [0, 1000] mm). 15 is the measured choice for a
-        time-of-flight camera; off by default because fast drags that a stereo camera at
-        1.1 m finds only while they move are lost (docs/accuracy.md section 7, session 38).
+        like the gate), while the hand pixels right behind it lie higher than
+        ``pending_step_attach_mm`` (default 33 mm; a touching finger rises 26-28 mm there,
+        the raised hand over a mixed strip 37-49 mm), gains no evidence in that frame: a
+        finger lands, it seldom arrives sliding. What arrives sliding is the strip of mixed
+        depths along the edge of a low hand sweeping past a time-of-flight camera (its raw
+        exposures see hand, then surface), and a finger still hovering on its way down.
+        Default 0: off; needs the camera's intrinsics (ranges [0, 1000] mm, [-1000, 1000]
+        mm; -1000 applies it whatever the hand's height). 15 is the measured choice for a
+        time-of-flight camera; not the default because one held-out half's jitter rose by
+        0.011 mm, past its rule (docs/accuracy.md section 7, session 38).
     merge_mm: a missing contact within this distance of a contact seen this frame is taken as
         merged into its neighbour's region (fingertips side by side), not lifted (default 25 mm;
         half of it in px when K is unknown).
@@ -246,6 +249,7 @@ class TrackingConfig:
     behind_min_mm: float = 10.0
     pending_gap_frames: int = 1
     pending_step_max_mm: float = 0.0
+    pending_step_attach_mm: float = 33.0
     pending_decay: float = 0.75
     pending_low_mm: float = 5.0
     pending_low_gap_frames: int = 3
@@ -276,6 +280,7 @@ class TrackingConfig:
         _range("tracking.held_step_mm", self.held_step_mm, 0.0, 1000.0)
         _range("tracking.held_near_mm", self.held_near_mm, 0.0, 1000.0)
         _range("tracking.pending_step_max_mm", self.pending_step_max_mm, 0.0, 1000.0)
+        _range("tracking.pending_step_attach_mm", self.pending_step_attach_mm, -1000.0, 1000.0)
         _range("tracking.tip_area_min_mm2", self.tip_area_min_mm2, 0.0, 10000.0)
         _range("tracking.tip_area_max_mm2", self.tip_area_max_mm2, self.tip_area_min_mm2, 1e5)
         _range("tracking.tip_area_min_px", self.tip_area_min_px, 0.0, 10000.0)

@@ -235,6 +235,10 @@ class Tracker:
         # how far a pending contact's point may move in a frame and still count (0: any)
         slide_mm = (cfg.pending_step_max_mm * self._rate.gate
                     if self.scale_mm_per_px is not None else 0.0)
+        slide_ath_mm = cfg.pending_step_attach_mm
+        # (an unknown attachment height counts as raised: the rule applies)
+        ath = ([math.inf] * n_p if points.attach_height_mm is None or slide_mm <= 0
+               else [math.inf if math.isnan(v) else v for v in points.attach_height_mm.tolist()])
         weight = evidence_weights(points, xy, area, ok_new, steep, self.scale_mm_per_px, cfg)
         # in a stream faster than reference_fps, a contact's first frame counts as one
         # reference frame and each further frame as its length: its evidence is how long it
@@ -283,8 +287,10 @@ class Tracker:
                     w_j = 0.0  # a pending contact whose core rose: not a touch this frame
                 m = 1 + t.missing
                 (vx, vy), (ox, oy), (px, py) = t.vel, t.pos, pos[j]
-                if not t.active and slide_mm > 0 and math.hypot(px - ox, py - oy) > slide_mm * m:
-                    w_j = 0.0  # a pending contact arriving sliding: no evidence this frame
+                if (not t.active and slide_mm > 0 and ath[j] > slide_ath_mm
+                        and math.hypot(px - ox, py - oy) > slide_mm * m):
+                    # a pending contact arriving sliding under a raised hand: no evidence now
+                    w_j = 0.0
                 # smoothed velocity, from rest: a noisy touch point (or, just after touch-down, a
                 # neighbour's tip arriving in the region) must not throw the prediction off
                 t.vel = (0.5 * vx + 0.5 * ((px - ox) / m), 0.5 * vy + 0.5 * ((py - oy) / m))
