@@ -296,8 +296,9 @@ def _add_sim(sub: argparse._SubParsersAction) -> None:
                         "scene's random pitch (20-70 for most); the rest of the seed's scene "
                         "stays the same")
     p.add_argument("--motion-ms", type=float, default=0.0, metavar="MS",
-                   help="ToF motion mixing: each frame integrated over the last MS ms [0, 50], "
-                        "so pixels a moving hand covers or uncovers read mixed depths")
+                   help="ToF motion mixing: each frame integrated over MS ms [0, 50] centred on "
+                        "its timestamp, so pixels a moving hand covers or uncovers read mixed "
+                        "depths")
     p.add_argument("--no-noise", action="store_true", help="exact geometry, no sensor noise")
     p.add_argument("--views", type=int, metavar="N",
                    help="N cameras (2-3) 0.8 m apart: --out is a folder of viewK.npz, "

@@ -24,7 +24,9 @@ when its own tip drops out for a frame, the nearest point is often a hovering fi
 beside it; it counts as missing instead, and nobody takes that point in that frame.
 A contact whose point has given no evidence of a touch for ``doubt_frames`` frames in a row
 goes ``up`` (it came down on a forearm's edge or a held object, which stays in the band).
-Ids are never reused within a run. With ``reference_fps`` set (off by default), the evidence
+With ``pending_step_max_mm`` set (off by default), a pending contact whose point arrives
+sliding under a raised hand gains no evidence in that frame (a time-of-flight camera's mixed
+depths along a hand sweeping past). Ids are never reused within a run. With ``reference_fps`` set (off by default), the evidence
 counts frames at that rate: in a faster stream (from the frames' timestamps,
 :mod:`.framerate`) a frame counts its length, so that a contact goes down after as many
 frames and as much time as at that rate.
