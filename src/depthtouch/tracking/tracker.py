@@ -26,10 +26,10 @@ A contact whose point has given no evidence of a touch for ``doubt_frames`` fram
 goes ``up`` (it came down on a forearm's edge or a held object, which stays in the band).
 With ``pending_step_max_mm`` set (off by default), a pending contact whose point arrives
 sliding under a raised hand gains no evidence in that frame (a time-of-flight camera's mixed
-depths along a hand sweeping past). Ids are never reused within a run. With ``reference_fps`` set (off by default), the evidence
-counts frames at that rate: in a faster stream (from the frames' timestamps,
-:mod:`.framerate`) a frame counts its length, so that a contact goes down after as many
-frames and as much time as at that rate.
+depths along a hand sweeping past). Ids are never reused within a run. With ``reference_fps``
+set (off by default), the evidence counts frames at that rate: in a faster stream (from the
+frames' timestamps, :mod:`.framerate`) a frame counts its length, so that a contact goes down
+after as many frames and as much time as at that rate.
 """
 
 from __future__ import annotations
