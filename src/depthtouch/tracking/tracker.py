@@ -238,9 +238,11 @@ class Tracker:
         slide_mm = (cfg.pending_step_max_mm * self._rate.gate
                     if self.scale_mm_per_px is not None else 0.0)
         slide_ath_mm = cfg.pending_step_attach_mm
-        # (an unknown attachment height counts as raised: the rule applies)
-        ath = ([math.inf] * n_p if points.attach_height_mm is None or slide_mm <= 0
-               else [math.inf if math.isnan(v) else v for v in points.attach_height_mm.tolist()])
+        # the heights behind the points, only when the rule is on (an unknown height counts as
+        # raised: the rule applies)
+        ath: list[float] = (
+            [] if slide_mm <= 0 else [math.inf] * n_p if points.attach_height_mm is None
+            else [math.inf if math.isnan(v) else v for v in points.attach_height_mm.tolist()])
         weight = evidence_weights(points, xy, area, ok_new, steep, self.scale_mm_per_px, cfg)
         # in a stream faster than reference_fps, a contact's first frame counts as one
         # reference frame and each further frame as its length: its evidence is how long it
