@@ -78,6 +78,9 @@ def _compare(params: dict[str, float], streams: list) -> dict[str, int]:
 @pytest.mark.parametrize("params", [
     {}, {"reland_frames": 6}, {"land_frames": 0}, {"lock_frames": 0}, {"land_restart_frames": 0},
     {"lock_frames": 0, "land_frames": 0}, {"lock_mean_frames": 5, "lock_mm": 1.0},
+    {"still_p": 0.01}, {"still_p": 0.2, "still_gate": 0.0, "still_q_mm2_s": 5.0},
+    {"lock_frames": 0, "land_frames": 0, "still_p": 0.01},
+    {"still_p": 0.01, "move_q_mm2_s3": 1e4, "still_noise_mm": 4.0, "still_noise_mul": 1.0},
     {"lock_resume_frames": 10}, {"lock_resume_frames": 10, "lock_mm": 1.0, "lock_sigmas": 1.0},
 ])
 def test_compiled_step_is_the_array_step(params: dict[str, float]) -> None:

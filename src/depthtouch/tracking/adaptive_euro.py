@@ -7,10 +7,13 @@ from __future__ import annotations
 
 import numpy as np
 
-from .eurokernel import FIELD_ORDER, PARAM_ORDER, euro_step
+from .eurokernel import FIELD_ORDER, PARAM_ORDER, STILL_CLIP, STILL_NU, euro_step
 from .filterbase import FilterBase, Param, smoothing_factor
 
 _HB = 32  # the last measurements kept per touch: the landing's window
+# the still models' start: the velocity's variance ((100 mm/s)²) and the still probability
+_START_VAR_MM2_S2 = 1e4
+_START_STILL = 0.9
 
 
 class AdaptiveEuroFilter(FilterBase):
@@ -150,6 +153,12 @@ class AdaptiveEuroFilter(FilterBase):
         "reland_sigmas": Param(2.0, 0.0, 100.0),
         "reland_mm_s": Param(40.0, 0.0, 10000.0, lo_open=False),
         "lock_resume_frames": Param(0.0, 0.0, 10000.0, lo_open=False),
+        "still_p": Param(0.0, 0.0, 0.5, lo_open=False),
+        "still_q_mm2_s": Param(0.01, 0.0, 1e6, lo_open=False),
+        "move_q_mm2_s3": Param(3e5, 0.0, 1e9),
+        "still_noise_mm": Param(1.5, 0.0, 100.0),
+        "still_noise_mul": Param(1.5, 0.0, 100.0),
+        "still_gate": Param(0.5, 0.0, 0.99, lo_open=False),
     }
     # the adaptive stage's position (mm) and velocity (mm/s); the smoothed speed vector (mm/s);
     # the 1€ stage's output (mm); the noise: the last two measurements (mm), how many were seen,
@@ -164,7 +173,8 @@ class AdaptiveEuroFilter(FilterBase):
                "sd": (1,), "q0": (1,), "qt": (1,), "qtt": (1,), "qx": (2,), "qtx": (2,),
                "m": (2,), "n": (1,), "r2": (1,), "land": (1,), "ls": (1,),
                "hx": (_HB,), "hy": (_HB,), "ht": (_HB,), "gx": (_HB,), "gy": (_HB,),
-               "mv": (1,), "pm": (2,), "pn": (1,), "pr2": (1,), "pt": (1,)}
+               "mv": (1,), "pm": (2,), "pn": (1,), "pr2": (1,), "pt": (1,),
+               "ss": (4,), "sc": (6,), "ms": (4,), "mc": (6,), "mu": (1,), "sn": (1,)}
 
     def __init__(self, **params: float) -> None:
         super().__init__(**params)
@@ -189,6 +199,15 @@ class AdaptiveEuroFilter(FilterBase):
         st["ht"][rows, 0] = self._t[rows]
         st["gx"][rows, 0] = xy[:, 0]
         st["gy"][rows, 0] = xy[:, 1]
+        # the still models start at the measurement, at rest, with the noise assumed so far
+        r0 = (self.params["still_noise_mul"] * self.params["still_noise_mm"]) ** 2
+        for k in ("ss", "ms"):
+            st[k][rows] = 0.0
+            st[k][rows, 0], st[k][rows, 2] = xy[:, 0], xy[:, 1]
+        for k in ("sc", "mc"):
+            st[k][rows] = np.array([r0, 0.0, _START_VAR_MM2_S2, r0, 0.0, _START_VAR_MM2_S2])
+        st["mu"][rows] = _START_STILL
+        st["sn"][rows] = self.params["still_noise_mm"]
 
     def _step(self, s: np.ndarray, xy: np.ndarray, dt_s: np.ndarray) -> np.ndarray:
         # one compiled call for the frame (tracking/eurokernel.py); _step_arrays is its oracle
@@ -226,10 +245,74 @@ class AdaptiveEuroFilter(FilterBase):
         if prm["reland_frames"] >= 2:
             mv_col = self._COLS["mv"]
             s[:, mv_col] = np.maximum(s[:, mv_col], (speed > prm["reland_mm_s"])[:, None])
-        if prm["lock_frames"] <= 0 and prm["land_frames"] <= 0:
+        models_on = prm["still_p"] > 0
+        if prm["lock_frames"] <= 0 and prm["land_frames"] <= 0 and not models_on:
             return e
         sd, med = self._recent(s, xy, dt_s)
-        return self._lock(s, xy, e, dt_s, sd, med)
+        out = self._lock(s, xy, e, dt_s, sd, med)
+        if models_on:
+            g, still = self._still_models(s, xy, dt_s)
+            out = out + g[:, None] * (still - out)
+        return out
+
+    def _still_models(self, s: np.ndarray, xy: np.ndarray, dt_s: np.ndarray
+                      ) -> tuple[np.ndarray, np.ndarray]:
+        """The still models (see the class doc): advances both models and the still
+        probability; returns the output's weight on the still model and its position (mm)."""
+        c = self._COLS
+        prm = self.params
+        p = prm["still_p"]
+        mu = s[:, c["mu"]][:, 0]
+        cs = (1.0 - p) * mu + p * (1.0 - mu)
+        cm = 1.0 - cs
+        # w[i, j]: the share of model i in model j's start (0 still, 1 moving), per touch
+        w = np.stack([np.stack([(1.0 - p) * mu / cs, p * mu / cm], axis=1),
+                      np.stack([p * (1.0 - mu) / cs, (1.0 - p) * (1.0 - mu) / cm], axis=1)],
+                     axis=1)
+        # state (touch, model, axis, pos/vel) and covariance (touch, model, axis, P00/P01/P11)
+        x = np.stack([s[:, c["ss"]], s[:, c["ms"]]], axis=1).reshape(-1, 2, 2, 2)
+        cov = np.stack([s[:, c["sc"]], s[:, c["mc"]]], axis=1).reshape(-1, 2, 2, 3)
+        x0 = np.einsum("nij,niak->njak", w, x)
+        d = x[:, :, None] - x0[:, None]  # (touch, i, j, axis, pos/vel)
+        spread = np.stack([d[..., 0] * d[..., 0], d[..., 0] * d[..., 1], d[..., 1] * d[..., 1]],
+                          axis=-1)
+        p0 = np.einsum("nij,nijak->njak", w, cov[:, :, None] + spread)
+        dt = dt_s[:, None]
+        # still: the position holds (a slow random walk), no velocity
+        xs = np.stack([x0[:, 0, :, 0], np.zeros_like(dt_s)[:, None].repeat(2, 1)], axis=-1)
+        ps = np.stack([p0[:, 0, :, 0] + prm["still_q_mm2_s"] * dt, np.zeros((len(dt_s), 2)),
+                       np.zeros((len(dt_s), 2))], axis=-1)
+        # moving: constant velocity, white acceleration noise
+        qm = prm["move_q_mm2_s3"]
+        pp, pv = x0[:, 1, :, 0], x0[:, 1, :, 1]
+        a00, a01, a11 = p0[:, 1, :, 0], p0[:, 1, :, 1], p0[:, 1, :, 2]
+        xm = np.stack([pp + dt * pv, pv], axis=-1)
+        pm = np.stack([a00 + 2.0 * dt * a01 + dt * dt * a11 + qm * dt**3 / 3.0,
+                       a01 + dt * a11 + qm * dt * dt / 2.0, a11 + qm * dt], axis=-1)
+        xp, pc = np.stack([xs, xm], axis=1), np.stack([ps, pm], axis=1)
+        rr = (prm["still_noise_mul"] * s[:, c["sn"]][:, 0]) ** 2
+        sa = pc[..., 0] + rr[:, None, None]  # (touch, model, axis)
+        inn = xy[:, None, :] - xp[..., 0]
+        m2 = np.sum(inn * inn / sa, axis=2)
+        det = np.prod(sa, axis=2)
+        clip = np.ones_like(m2)
+        clip[:, 0] = np.where(m2[:, 0] > STILL_CLIP**2,
+                              STILL_CLIP / np.sqrt(np.maximum(m2[:, 0], 1e-300)), 1.0)
+        yv = inn * clip[:, :, None]
+        k0, k1 = pc[..., 0] / sa, pc[..., 1] / sa
+        xn = np.stack([xp[..., 0] + k0 * yv, xp[..., 1] + k1 * yv], axis=-1)
+        pn = np.stack([(1.0 - k0) * pc[..., 0], (1.0 - k0) * pc[..., 1],
+                       pc[..., 2] - k1 * pc[..., 1]], axis=-1)
+        s[:, c["ss"]], s[:, c["ms"]] = xn[:, 0].reshape(-1, 4), xn[:, 1].reshape(-1, 4)
+        s[:, c["sc"]], s[:, c["mc"]] = pn[:, 0].reshape(-1, 6), pn[:, 1].reshape(-1, 6)
+        lik = (1.0 + m2 / STILL_NU) ** (-(STILL_NU + 2.0) / 2.0) / np.sqrt(det)
+        ls, lm = cs * lik[:, 0], cm * lik[:, 1]
+        tot = ls + lm
+        mu = np.where(tot > 0, ls / np.where(tot > 0, tot, 1.0), cs)
+        s[:, c["mu"]] = mu[:, None]
+        gate = prm["still_gate"]
+        g = np.clip((mu - gate) / (1.0 - gate), 0.0, 1.0)
+        return g, xn[:, 0, :, 0]
 
     def _recent(self, s: np.ndarray, xy: np.ndarray, dt_s: np.ndarray
                 ) -> tuple[np.ndarray, np.ndarray]:
@@ -242,10 +325,16 @@ class AdaptiveEuroFilter(FilterBase):
         # white noise of sd per axis gives second differences of RMS sqrt(6)·sd per axis, a
         # mean norm of 3.07·sd; a jump or a turn is clipped so that one does not inflate it
         dd = xy - 2.0 * z1 + z2
-        est = np.minimum(np.hypot(dd[:, 0], dd[:, 1]) / 3.07, 3.0 * sd + 1.0)
-        rate = np.maximum(1.0 / np.maximum(nz - 1.0, 1.0),
-                          smoothing_factor(dt_s, 1.0 / (2.0 * np.pi * prm["noise_s"])))
+        norm = np.hypot(dd[:, 0], dd[:, 1]) / 3.07
+        est = np.minimum(norm, 3.0 * sd + 1.0)
+        rate_s = smoothing_factor(dt_s, 1.0 / (2.0 * np.pi * prm["noise_s"]))
+        rate = np.maximum(1.0 / np.maximum(nz - 1.0, 1.0), rate_s)
         sd = np.where(nz >= 2.0, sd + rate * (est - sd), sd)
+        if prm["still_p"] > 0:
+            # the still models' own noise level: from its start, at the slow rate only
+            sn = s[:, c["sn"]][:, 0]
+            sn = np.where(nz >= 2.0, sn + rate_s * (np.minimum(norm, 3.0 * sn + 1.0) - sn), sn)
+            s[:, c["sn"]] = sn[:, None]
         med = np.maximum(np.minimum(xy, z1), np.minimum(np.maximum(xy, z1), z2))
         med = np.where((nz >= 2.0)[:, None], med, xy)
         s[:, c["z2"]], s[:, c["z1"]] = z1, xy

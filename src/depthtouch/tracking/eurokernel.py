@@ -21,20 +21,29 @@ import numpy as np
 #: the fields whose first column the kernel is given, in this order
 FIELD_ORDER = ("p", "v", "dx", "e", "z1", "z2", "nz", "sd", "q0", "qt", "qtt", "qx", "qtx",
                "m", "n", "r2", "land", "ls", "hx", "hy", "ht", "gx", "gy", "mv", "pm", "pn",
-               "pr2", "pt")
+               "pr2", "pt", "ss", "sc", "ms", "mc", "mu", "sn")
 #: the parameters the kernel reads, in this order
 PARAM_ORDER = ("min_cutoff_hz", "half_weight_mm", "rest_cutoff_hz", "rest_mm_s", "beta_per_mm",
                "speed_cutoff_hz", "hold_mm", "lock_mm", "lock_frames", "lock_mean_frames",
                "lock_mm_s", "lock_sigmas", "noise_mm", "noise_s", "land_frames",
                "land_blend_sigmas", "land_sigmas", "land_restart_frames", "land_restart_sigmas",
-               "reland_frames", "reland_sigmas", "reland_mm_s", "lock_resume_frames")
+               "reland_frames", "reland_sigmas", "reland_mm_s", "lock_resume_frames",
+               "still_p", "still_q_mm2_s", "move_q_mm2_s3", "still_noise_mm", "still_noise_mul",
+               "still_gate")
 
 (_P, _V, _DX, _E, _Z1, _Z2, _NZ, _SD, _Q0, _QT, _QTT, _QX, _QTX, _M, _N, _R2, _LAND, _LS,
- _HX, _HY, _HT, _GX, _GY, _MV, _PM, _PN, _PR2, _PT) = range(len(FIELD_ORDER))
+ _HX, _HY, _HT, _GX, _GY, _MV, _PM, _PN, _PR2, _PT, _SS, _SC, _MS, _MC,
+ _MU, _SN) = range(len(FIELD_ORDER))
 (_MIN_CUT, _HALF_W, _REST_CUT, _REST_MM_S, _BETA, _SPEED_CUT, _HOLD, _LOCK_MM, _LOCK_FRAMES,
  _LOCK_MEAN, _LOCK_MM_S, _LOCK_SIG, _NOISE_MM, _NOISE_S, _LAND_FRAMES, _LAND_BLEND, _LAND_SIG,
  _RESTART_FRAMES, _RESTART_SIG, _RELAND_FRAMES, _RELAND_SIG, _RELAND_MM_S,
- _RESUME_FRAMES) = range(len(PARAM_ORDER))
+ _RESUME_FRAMES, _STILL_P, _STILL_Q, _MOVE_Q, _STILL_NOISE, _STILL_MUL,
+ _STILL_GATE) = range(len(PARAM_ORDER))
+#: the still models' likelihoods are Student-t with this many degrees of freedom (a tip
+#: estimate's one-frame jumps are not Gaussian); the still model's innovation is clipped at
+#: this many standard deviations
+STILL_NU = 3.0
+STILL_CLIP = 3.0
 
 
 @numba.njit(cache=True, nogil=True, inline="always")
@@ -149,6 +158,80 @@ def _landing(row: np.ndarray, c: np.ndarray, prm: np.ndarray, hb: int, x: float,
 
 
 @numba.njit(cache=True, nogil=True)
+def _still_models(row: np.ndarray, c: np.ndarray, prm: np.ndarray, x: float, y: float,
+                  dt: float) -> tuple[float, float, float]:
+    """The still models' step (``AdaptiveEuroFilter._still_models``): advances both models and
+    the still probability in ``row``; returns the output's weight on the still model and the
+    still model's position (mm)."""
+    p = prm[_STILL_P]
+    mu = row[c[_MU]]
+    cs = (1.0 - p) * mu + p * (1.0 - mu)
+    cm = 1.0 - cs
+    # mixing weights: w[i][j], the share of model i in model j's start (0 still, 1 moving)
+    w00, w10 = (1.0 - p) * mu / cs, p * (1.0 - mu) / cs
+    w01, w11 = p * mu / cm, (1.0 - p) * (1.0 - mu) / cm
+    r = prm[_STILL_MUL] * row[c[_SN]]
+    rr = r * r
+    qs, qm = prm[_STILL_Q] * dt, prm[_MOVE_Q]
+    m2 = np.empty(2)
+    det = np.empty(2)
+    # per axis: state (position, velocity) and covariance (P00, P01, P11) of each model
+    st = np.empty((2, 2, 2))  # model, axis, (pos, vel) after the prediction
+    cv = np.empty((2, 2, 3))
+    inn = np.empty((2, 2))
+    for j in range(2):
+        m2[j], det[j] = 0.0, 1.0
+        wa = w00 if j == 0 else w01
+        wb = w10 if j == 0 else w11
+        for a in range(2):
+            sp, sv = row[c[_SS] + 2 * a], row[c[_SS] + 2 * a + 1]
+            mp, mv = row[c[_MS] + 2 * a], row[c[_MS] + 2 * a + 1]
+            x0p, x0v = wa * sp + wb * mp, wa * sv + wb * mv
+            dsp, dsv, dmp, dmv = sp - x0p, sv - x0v, mp - x0p, mv - x0v
+            ks, km = c[_SC] + 3 * a, c[_MC] + 3 * a
+            p00 = wa * (row[ks] + dsp * dsp) + wb * (row[km] + dmp * dmp)
+            p01 = wa * (row[ks + 1] + dsp * dsv) + wb * (row[km + 1] + dmp * dmv)
+            p11 = wa * (row[ks + 2] + dsv * dsv) + wb * (row[km + 2] + dmv * dmv)
+            if j == 0:  # still: the position holds (a slow random walk), no velocity
+                x0v = 0.0
+                p00, p01, p11 = p00 + qs, 0.0, 0.0
+            else:  # moving: constant velocity, white acceleration noise
+                x0p = x0p + dt * x0v
+                p00 = p00 + 2.0 * dt * p01 + dt * dt * p11 + qm * dt * dt * dt / 3.0
+                p01 = p01 + dt * p11 + qm * dt * dt / 2.0
+                p11 = p11 + qm * dt
+            z = x if a == 0 else y
+            inn[j, a] = z - x0p
+            sa = p00 + rr
+            m2[j] += inn[j, a] * inn[j, a] / sa
+            det[j] *= sa
+            st[j, a, 0], st[j, a, 1] = x0p, x0v
+            cv[j, a, 0], cv[j, a, 1], cv[j, a, 2] = p00, p01, p11
+    for j in range(2):
+        clip = 1.0
+        if j == 0 and m2[0] > STILL_CLIP * STILL_CLIP:
+            clip = STILL_CLIP / math.sqrt(m2[0])
+        base = c[_SS] if j == 0 else c[_MS]
+        cb = c[_SC] if j == 0 else c[_MC]
+        for a in range(2):
+            p00, p01, p11 = cv[j, a, 0], cv[j, a, 1], cv[j, a, 2]
+            sa = p00 + rr
+            k0, k1 = p00 / sa, p01 / sa
+            yv = inn[j, a] * clip
+            row[base + 2 * a] = st[j, a, 0] + k0 * yv
+            row[base + 2 * a + 1] = st[j, a, 1] + k1 * yv
+            row[cb + 3 * a] = (1.0 - k0) * p00
+            row[cb + 3 * a + 1] = (1.0 - k0) * p01
+            row[cb + 3 * a + 2] = p11 - k1 * p01
+    ls = cs * (1.0 + m2[0] / STILL_NU) ** (-(STILL_NU + 2.0) / 2.0) / math.sqrt(det[0])
+    lm = cm * (1.0 + m2[1] / STILL_NU) ** (-(STILL_NU + 2.0) / 2.0) / math.sqrt(det[1])
+    mu = ls / (ls + lm) if ls + lm > 0.0 else cs
+    row[c[_MU]] = mu
+    g = min(1.0, max(0.0, (mu - prm[_STILL_GATE]) / (1.0 - prm[_STILL_GATE])))
+    return g, row[c[_SS]], row[c[_SS] + 2]
+
+
+@numba.njit(cache=True, nogil=True)
 def euro_step(s: np.ndarray, xy: np.ndarray, dt_s: np.ndarray, prm: np.ndarray,
               c: np.ndarray, hb: int) -> np.ndarray:
     """Advance the state rows ``s`` (one per touch, updated in place) by ``dt_s`` (s, > 0) to
@@ -160,6 +243,7 @@ def euro_step(s: np.ndarray, xy: np.ndarray, dt_s: np.ndarray, prm: np.ndarray,
     land_on = prm[_LAND_FRAMES] > 0.0
     reland = prm[_RELAND_FRAMES] >= 2.0 and land_on
     resume_on = prm[_RESUME_FRAMES] > 0.0 and lock_on
+    models_on = prm[_STILL_P] > 0.0
     lock_frames = max(prm[_LOCK_FRAMES], 2.0)  # a line needs two points
     frames = max(lock_frames, prm[_LAND_FRAMES])  # the sums' horizon (the landing reads them)
     keep = 1.0 - 1.0 / frames
@@ -192,17 +276,20 @@ def euro_step(s: np.ndarray, xy: np.ndarray, dt_s: np.ndarray, prm: np.ndarray,
         row[c[_E]], row[c[_E] + 1] = ex, ey
         if prm[_RELAND_FRAMES] >= 2.0 and speed > prm[_RELAND_MM_S]:
             row[c[_MV]] = 1.0
-        if not lock_on and not land_on:
+        if not lock_on and not land_on and not models_on:
             out[i, 0], out[i, 1] = ex, ey
             continue
         # the noise (second differences) and the median of the last three measurements
         z1x, z1y, z2x, z2y = row[c[_Z1]], row[c[_Z1] + 1], row[c[_Z2]], row[c[_Z2] + 1]
         sd, nz = row[c[_SD]], row[c[_NZ]]
         if nz >= 2.0:
-            est = min(math.hypot(x - 2.0 * z1x + z2x, y - 2.0 * z1y + z2y) / 3.07, 3.0 * sd + 1.0)
-            noise_rate = max(1.0 / max(nz - 1.0, 1.0),
-                             _alpha(dt, 1.0 / (2.0 * math.pi * prm[_NOISE_S])))
-            sd = sd + noise_rate * (est - sd)
+            dd = math.hypot(x - 2.0 * z1x + z2x, y - 2.0 * z1y + z2y) / 3.07
+            rate_s = _alpha(dt, 1.0 / (2.0 * math.pi * prm[_NOISE_S]))
+            noise_rate = max(1.0 / max(nz - 1.0, 1.0), rate_s)
+            sd = sd + noise_rate * (min(dd, 3.0 * sd + 1.0) - sd)
+            if models_on:
+                sn = row[c[_SN]]
+                row[c[_SN]] = sn + rate_s * (min(dd, 3.0 * sn + 1.0) - sn)
             medx = max(min(x, z1x), min(max(x, z1x), z2x))
             medy = max(min(y, z1y), min(max(y, z1y), z2y))
         else:
@@ -258,9 +345,11 @@ def euro_step(s: np.ndarray, xy: np.ndarray, dt_s: np.ndarray, prm: np.ndarray,
             n = 0.0
         row[c[_M]], row[c[_M] + 1], row[c[_N]], row[c[_R2]] = mx, my, n, r2
         if n > 0.0:
-            out[i, 0], out[i, 1] = mx, my
-        else:
-            out[i, 0], out[i, 1] = ex, ey
+            ex, ey = mx, my
+        if models_on:
+            g, sx, sy = _still_models(row, c, prm, x, y, dt)
+            ex, ey = ex + g * (sx - ex), ey + g * (sy - ey)
+        out[i, 0], out[i, 1] = ex, ey
     return out
 
 
