@@ -299,6 +299,10 @@ def _add_sim(sub: argparse._SubParsersAction) -> None:
                    help="ToF motion mixing: each frame integrated over MS ms [0, 50] centred on "
                         "its timestamp, so pixels a moving hand covers or uncovers read mixed "
                         "depths")
+    p.add_argument("--skin-noise", type=float, default=1.0, metavar="K",
+                   help="the temporal noise of the hand (and anything on the surface) x K "
+                        "[1, 4], and every pixel's growing with its incidence angle: a ToF "
+                        "camera's noise follows the infrared amplitude it gets back")
     p.add_argument("--no-noise", action="store_true", help="exact geometry, no sensor noise")
     p.add_argument("--views", type=int, metavar="N",
                    help="N cameras (2-3) 0.8 m apart: --out is a folder of viewK.npz, "
@@ -319,6 +323,8 @@ def _add_sim(sub: argparse._SubParsersAction) -> None:
             raise ConfigError("--pitch applies to one camera; leave it out with --views")
         if a.views is not None and a.motion_ms != 0.0:
             raise ConfigError("--motion-ms applies to one camera; leave it out with --views")
+        if a.views is not None and a.skin_noise != 1.0:
+            raise ConfigError("--skin-noise applies to one camera; leave it out with --views")
         if a.views is not None:
             from .sim.multiview import default_poses, render_views, write_views
 
@@ -334,7 +340,7 @@ def _add_sim(sub: argparse._SubParsersAction) -> None:
             a.scene, camera=a.camera, distance_m=a.distance, tilt_deg=a.tilt,
             surface=a.surface, seed=a.seed, fps=a.fps, noise=not a.no_noise, hand=a.hand,
             resolution_scale=a.resolution_scale, pitch_deg=a.pitch, noise_scale=a.noise_scale,
-            motion_ms=a.motion_ms,
+            motion_ms=a.motion_ms, skin_noise=a.skin_noise,
         )
         write_recording(rec, a.out, a.truth)
         if not a.quiet:

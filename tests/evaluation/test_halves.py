@@ -423,3 +423,40 @@ def test_motion_check_set_mixes_every_tof_frame_at_placements_of_its_own() -> No
     for group in {c.group for c in cases}:
         mine = [c for c in cases if c.group == group]
         assert select_half(mine, "tune") and select_half(mine, "held-out"), group
+
+
+def test_skin_check_set_raises_the_hands_noise_at_placements_of_its_own() -> None:
+    """skin-tof: the hard ToF situations with the hand's noise x 1.5 (and the incidence angle's),
+    both hands, at placements and seeds no other suite uses, every situation on both halves."""
+    from depthtouch.evaluation.suite import SUITES_DIR
+
+    cases = load_suite("skin-tof").cases
+    assert len(cases) == 40
+    assert {c.skin_noise for c in cases} == {1.5} and {c.camera for c in cases} == {"kinect-v2-hard"}
+    assert {c.hand for c in cases} == {"capsule", "anatomic"}
+    assert all("/skin1.5/" in c.label for c in cases)
+    others = [c for p in SUITES_DIR.glob("*.toml") if p.stem != "skin-tof"
+              for c in load_suite(p.stem).cases]
+    assert not {placement(c) for c in cases} & {placement(c) for c in others}
+    assert not {c.seed for c in cases} & {c.seed for c in others}
+    assert all(c.skin_noise == 1.0 for c in others)  # no other suite changed
+    for group in {c.group for c in cases}:
+        mine = [c for c in cases if c.group == group]
+        assert select_half(mine, "tune") and select_half(mine, "held-out"), group
+
+
+def test_fifth_check_set_has_its_own_seeds_and_placements_and_both_hands() -> None:
+    """hard-fresh5: hard's scenes at placements and seeds no other suite uses, every group with
+    both hand models."""
+    from depthtouch.evaluation.suite import SUITES_DIR
+
+    others = [load_suite(p.stem).cases for p in SUITES_DIR.glob("*.toml")
+              if p.stem != "hard-fresh5"]
+    cases = load_suite("hard-fresh5").cases
+    assert len(cases) == 56
+    assert not {c.seed for c in cases} & {c.seed for cs in others for c in cs}
+    assert not {placement(c) for c in cases} & {placement(c) for cs in others for c in cs}
+    assert {c.scene for c in cases} == {c.scene for c in load_suite("hard").cases}
+    for g in {c.group for c in cases}:
+        assert {c.hand for c in cases if c.group == g} == {"capsule", "anatomic"}
+    assert select_half(cases, "tune") and select_half(cases, "held-out")

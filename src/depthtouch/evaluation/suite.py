@@ -17,6 +17,7 @@ group is a grid of scenes x cameras x distances x surfaces x tilts x hands x see
     hands = ["capsule"]            # default ["capsule"]; or "anatomic" (docs/simulator.md)
     pitches_deg = [60.0]           # optional: every lead finger at this pitch (default: drawn)
     motion_ms = 12.0               # optional: ToF motion mixing over this span (default 0: none)
+    skin_noise = 1.5               # optional: noise of what stands on the surface x this (1: none)
     seeds = [1]
     tags = ["quick"]               # optional: subsets a run may select
 
@@ -66,6 +67,8 @@ class SuiteCase:
     distance_m: camera to surface (m); tilt_deg: surface tilt (deg); fps: frame rate (Hz);
     pitch_deg: every lead finger at this angle to the surface (deg), None: the scene's own.
     motion_ms: the span of the camera's raw exposures (ms; 0: none), see ``render_scene``.
+    skin_noise: the temporal noise of what stands on the surface times this, and the noise's
+    growth with the incidence angle (1: none), see ``render_scene``.
     """
 
     scene: str
@@ -81,6 +84,7 @@ class SuiteCase:
     pitch_deg: float | None = None
     noise_scale: float = 1.0
     motion_ms: float = 0.0
+    skin_noise: float = 1.0
 
     @property
     def label(self) -> str:
@@ -91,8 +95,9 @@ class SuiteCase:
         pitch = "" if self.pitch_deg is None else f"/pitch{self.pitch_deg:g}"
         noise = "" if self.noise_scale == 1.0 else f"/noise{self.noise_scale:g}"
         motion = "" if self.motion_ms == 0.0 else f"/motion{self.motion_ms:g}"
+        skin = "" if self.skin_noise == 1.0 else f"/skin{self.skin_noise:g}"
         return (f"{self.scene}/{self.camera}{res}/{self.distance_m:g}m{surf}{tilt}{hand}"
-                f"{pitch}{noise}{motion}/s{self.seed}")
+                f"{pitch}{noise}{motion}{skin}/s{self.seed}")
 
     def render_kwargs(self) -> dict[str, Any]:
         kw: dict[str, Any] = {"camera": self.camera, "distance_m": self.distance_m,
@@ -108,6 +113,8 @@ class SuiteCase:
             kw["noise_scale"] = self.noise_scale
         if self.motion_ms != 0.0:  # (absent at 0: the cache keys stay as they were)
             kw["motion_ms"] = self.motion_ms
+        if self.skin_noise != 1.0:  # (absent at 1: the cache keys stay as they were)
+            kw["skin_noise"] = self.skin_noise
         return kw
 
     def cache_key(self) -> str:
@@ -244,7 +251,7 @@ def suite_from_dict(data: dict[str, Any], where: str = "suite") -> Suite:
         gname = str(g.get("name", f"group{i}"))
         gw = f"{where}: group {gname}"
         known = {"name", "scenes", "cameras", "distances_m", "surfaces", "tilts_deg", "seeds",
-                 "fps", "tags", "hands", "pitches_deg", "motion_ms"}
+                 "fps", "tags", "hands", "pitches_deg", "motion_ms", "skin_noise"}
         unknown = sorted(set(g) - known)
         if unknown:
             raise ConfigError(
@@ -265,6 +272,7 @@ def suite_from_dict(data: dict[str, Any], where: str = "suite") -> Suite:
             raise ConfigError(f"{gw}: seeds must be whole numbers >= 0")
         fps = _numbers([g.get("fps", 30.0)], "fps", gw, 1.0, 1000.0)[0]
         motion = _numbers([g.get("motion_ms", 0.0)], "motion_ms", gw, 0.0, 50.0)[0]
+        skin = _numbers([g.get("skin_noise", 1.0)], "skin_noise", gw, 1.0, 4.0)[0]
         tags = g.get("tags", [])
         if not isinstance(tags, list) or not all(isinstance(t, str) for t in tags):
             raise ConfigError(f"{gw}: tags must be a list of names")
@@ -275,7 +283,8 @@ def suite_from_dict(data: dict[str, Any], where: str = "suite") -> Suite:
                         for tilt, hand, pitch, seed in itertools.product(tilts, hands, pitches,
                                                                          seeds):
                             c = SuiteCase(s, cam, d, surf, tilt, int(seed), fps, gname, hand,
-                                          pitch_deg=pitch, motion_ms=motion)
+                                          pitch_deg=pitch, motion_ms=motion,
+                                          skin_noise=skin)
                             key = dataclasses.replace(c, group="")
                             cases.setdefault(key, (c, set()))[1].update(tags)
     ordered = [c for c, _ in cases.values()]

@@ -193,9 +193,12 @@ class NoiseModel:
 
     _POOL_FRAMES = 6
 
-    def __init__(self, profile: CameraProfile, rng: np.random.Generator) -> None:
+    def __init__(self, profile: CameraProfile, rng: np.random.Generator,
+                 skin_noise: float = 1.0) -> None:
         self.profile = profile
         self.rng = rng
+        # the returned amplitude's share in the noise (render_scene's skin_noise; 1: none)
+        self.skin_noise = float(skin_noise)
         w, h = profile.resolution_wh
         self.shape = (h, w)
         self._n = h * w
@@ -248,7 +251,7 @@ class NoiseModel:
         """Precompute what depends only on the static scene (the surface depth map)."""
         z = np.asarray(z_mm, dtype=np.float32)
         self._static_z = z
-        sigma, add, bad = self._maps(z)
+        sigma, add, bad = self._maps(z, self._amplitude(z, None))
         self._static_add = add
         self._static_bias = sigma * self.bias
         # surface pixels whose noise can cross a range limit are checked every frame
@@ -264,8 +267,27 @@ class NoiseModel:
         self._static_missing = missing
         self._depth_mm = float(np.median(z[z > 0])) if np.any(z > 0) else 1000.0
 
-    def _maps(self, z: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """sigma, the Gaussian std to add, and the range-invalid mask for depths z."""
+    def _amplitude(self, z: np.ndarray, static: np.ndarray | None) -> np.ndarray | None:
+        """The temporal noise's factor where the returned amplitude is lower (None without
+        ``skin_noise``): 1/cos of the angle between the surface's normal and the optical axis
+        (from the noise-free depth's gradient; at most 4), times ``skin_noise`` where something
+        stands nearer than the static surface ``static`` by more than 3 mm."""
+        if self.skin_noise == 1.0:
+            return None
+        gy, gx = np.gradient(z)
+        scale = np.float32(self.profile.fx_px) / np.where(z > 0, z, np.float32(np.inf))
+        slope2 = (gx * gx + gy * gy) * scale * scale
+        factor = np.minimum(np.sqrt(np.float32(1.0) + slope2), np.float32(4.0))
+        if static is not None:
+            near = (z > 0) & (z < static - np.float32(3.0))
+            factor = np.where(near, factor * np.float32(self.skin_noise), factor)
+        return factor.astype(np.float32)
+
+    def _maps(self, z: np.ndarray, factor: np.ndarray | None = None
+              ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """sigma, the Gaussian std to add, and the range-invalid mask for depths z; ``factor``
+        (per pixel, from :meth:`_amplitude`) scales the temporal noise only (the bias, edges and
+        range checks keep sigma)."""
         p = self.profile
         valid = z > 0
         zs = np.where(valid, z, np.float32(p.min_range_mm))
@@ -273,9 +295,10 @@ class NoiseModel:
         if self.noise_scale != 1.0:
             sigma = sigma * self.noise_scale
         q = p.quantum_mm(zs)
+        s_add = sigma if factor is None else sigma * factor
         # leave room for the quantisation variance so the output std equals sigma
-        add = np.sqrt(np.maximum(sigma * sigma - q * q * np.float32(1.0 / 12.0),
-                                 np.float32(0.09) * sigma * sigma))
+        add = np.sqrt(np.maximum(s_add * s_add - q * q * np.float32(1.0 / 12.0),
+                                 np.float32(0.09) * s_add * s_add))
         bad = ~valid | (z < p.min_range_mm) | (z > p.max_range_mm)
         return sigma, add, bad
 
@@ -328,7 +351,8 @@ class NoiseModel:
         x1, y1 = min(box[2] + 2, w), min(box[3] + 2, h)
         sl = (slice(y0, y1), slice(x0, x1))
         zb = z[sl] if p.window_px <= 1 else match_window(z[sl], p.window_px)
-        sigma, add, bad = self._maps(zb)
+        static = self._static_z[sl] if self._static_z is not None else None
+        sigma, add, bad = self._maps(zb, self._amplitude(zb, static))
         nb = zb + add * eps[sl] + sigma * self.bias[sl]
         edge_missing, fly = self._edge_effects(zb, sigma, nb)
         nb = nb if fly is None else fly
