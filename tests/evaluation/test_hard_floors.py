@@ -33,7 +33,9 @@ pytest.importorskip("depthtouch.sim")
 # 6.94 mm, the rest unchanged; session 25, tip_tl_shift 0.6: error 1.42 / 5.01 mm, jitter
 # 0.817 mm, angle 3.95 deg, the rest unchanged; session 26, tracking.weak_quiet_evidence 0.25:
 # 0.82 false touches per minute, no touch down while its finger was >= 25 mm up (4 before),
-# jitter 0.934 mm, the rest unchanged); "max" floors are upper bounds. Some are short of issue 13's
+# jitter 0.934 mm, the rest unchanged; session 39, the still models in the path filter: jitter
+# 0.760 mm, error 1.33 / 4.96 mm, angle 3.94 deg, the rest unchanged); "max" floors are upper
+# bounds. Some are short of issue 13's
 # targets: they guard against regressions, see docs/accuracy.md.
 FLOORS_MIN: dict[str, float] = {"recall_working": 0.965, "recall_drift": 0.93}
 FLOORS_MAX: dict[str, float] = {
@@ -43,7 +45,7 @@ FLOORS_MAX: dict[str, float] = {
     "id_switches": 1,
     "error_median_mm": 1.7,
     "error_p95_mm": 7.3,
-    "jitter_rms_mm": 1.0,
+    "jitter_rms_mm": 0.85,
     "angle_error_deg": 4.3,
     "false_late_after_change": 1,
     "down_latency_median_frames": 1.0,
@@ -58,7 +60,8 @@ FLOORS_MAX: dict[str, float] = {
 # (session 25): error 3.35 / 7.96 mm, jitter 1.23 mm, angle 8.51 deg, the rest unchanged;
 # then tracking.weak_quiet_evidence 0.25 (session 26): 1.63 false touches per minute, none from
 # hovers >= 25 mm, no touch down while its finger was >= 25 mm up (2 before), 0 id switches,
-# error 3.34 / 8.05 mm, the rest unchanged.
+# error 3.34 / 8.05 mm, the rest unchanged; session 39, the still models: jitter 1.15 mm,
+# error 2.53 / 7.54 mm, angle 8.70 deg.
 # Worse than hard's on most measures: a thin fingertip loses its front to Tl
 # (docs/accuracy.md, session 25). Regression guards, not targets.
 FRESH3_MIN: dict[str, float] = {"recall_working": 0.94, "recall_drift": 0.87}
@@ -69,7 +72,7 @@ FRESH3_MAX: dict[str, float] = {
     "id_switches": 2,
     "error_median_mm": 3.6,
     "error_p95_mm": 8.4,
-    "jitter_rms_mm": 1.35,
+    "jitter_rms_mm": 1.25,
     "angle_error_deg": 9.0,
     "false_late_after_change": 2,
     "down_latency_median_frames": 1.0,
