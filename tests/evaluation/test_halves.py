@@ -447,11 +447,12 @@ def test_skin_check_set_raises_the_hands_noise_at_placements_of_its_own() -> Non
 
 def test_fifth_check_set_has_its_own_seeds_and_placements_and_both_hands() -> None:
     """hard-fresh5: hard's scenes at placements and seeds no other suite uses, every group with
-    both hand models."""
+    both hand models (but drift-hold, made after it ran to try its placements with other
+    seeds)."""
     from depthtouch.evaluation.suite import SUITES_DIR
 
     others = [load_suite(p.stem).cases for p in SUITES_DIR.glob("*.toml")
-              if p.stem != "hard-fresh5"]
+              if p.stem not in ("hard-fresh5", "drift-hold")]
     cases = load_suite("hard-fresh5").cases
     assert len(cases) == 56
     assert not {c.seed for c in cases} & {c.seed for cs in others for c in cs}
@@ -460,3 +461,23 @@ def test_fifth_check_set_has_its_own_seeds_and_placements_and_both_hands() -> No
     for g in {c.group for c in cases}:
         assert {c.hand for c in cases if c.group == g} == {"capsule", "anatomic"}
     assert select_half(cases, "tune") and select_half(cases, "held-out")
+
+
+def test_drift_hold_check_set_tries_fresh5s_misses_elsewhere_and_with_other_seeds() -> None:
+    """drift-hold: drift and still fingers next to hard-fresh5's placements and at them, with
+    seeds no other suite uses, both hands, every group on both halves."""
+    from depthtouch.evaluation.suite import SUITES_DIR
+
+    cases = load_suite("drift-hold").cases
+    assert len(cases) == 60
+    assert {c.scene for c in cases} == {"warmup", "stillholds"}
+    others = [c for p in SUITES_DIR.glob("*.toml") if p.stem != "drift-hold"
+              for c in load_suite(p.stem).cases]
+    assert not {c.seed for c in cases} & {c.seed for c in others}
+    fresh5 = {placement(c) for c in load_suite("hard-fresh5").cases}
+    shared = {placement(c) for c in cases} & {placement(c) for c in others}
+    assert shared and shared <= fresh5
+    for group in {c.group for c in cases}:
+        mine = [c for c in cases if c.group == group]
+        assert {c.hand for c in mine} == {"capsule", "anatomic"}
+        assert select_half(mine, "tune") and select_half(mine, "held-out"), group
