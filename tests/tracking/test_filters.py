@@ -366,6 +366,21 @@ def test_still_models_follow_a_drag_from_rest_as_fast_as_without_them(seed):
     assert np.abs(on[30:] - off[30:]).max() < 1.0
 
 
+@pytest.mark.parametrize("still_q", [0.0, 0.01])
+def test_still_models_stay_finite_on_an_exactly_repeated_input(still_q):
+    """A point that never moves, to the last bit, for 30 minutes at 30 fps (a noise-free
+    recording): the still models' noise level decays toward 0, their variance is floored, and
+    the output stays the point, then follows a move."""
+    f = make_filter("adaptive_euro", still_q_mm2_s=still_q)
+    ids, xy = np.array([1]), np.array([[100.0, 50.0]])
+    for k in range(54000):
+        out = f.update(ids, xy, k / 30)
+    assert np.all(np.isfinite(out)) and np.allclose(out, xy)
+    for k in range(54000, 54010):
+        out = f.update(ids, xy + [[5.0, 0.0]], k / 30)
+    assert np.all(np.isfinite(out)) and abs(out[0, 0] - 105.0) < 0.5
+
+
 def test_rest_lock_holds_a_noisy_still_finger_with_outliers():
     """2 mm RMS noise per axis and 5 % outliers of 12 mm (a camera at range): after 1.5 s the
     output moves less than 0.4 mm RMS (raw 3.5 mm; without the lock 2.5 mm)."""

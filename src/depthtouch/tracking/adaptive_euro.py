@@ -316,7 +316,8 @@ class AdaptiveEuroFilter(FilterBase):
         pm = np.stack([a00 + 2.0 * dt * a01 + dt * dt * a11 + qm * dt**3 / 3.0,
                        a01 + dt * a11 + qm * dt * dt / 2.0, a11 + qm * dt], axis=-1)
         xp, pc = np.stack([xs, xm], axis=1), np.stack([ps, pm], axis=1)
-        rr = (prm["still_noise_mul"] * s[:, c["sn"]][:, 0]) ** 2
+        # (at least 1e-4 mm²: an exactly repeated input must not bring it to 0)
+        rr = np.maximum((prm["still_noise_mul"] * s[:, c["sn"]][:, 0]) ** 2, 1e-4)
         sa = pc[..., 0] + rr[:, None, None]  # (touch, model, axis)
         inn = xy[:, None, :] - xp[..., 0]
         m2 = np.sum(inn * inn / sa, axis=2)

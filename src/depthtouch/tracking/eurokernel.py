@@ -44,6 +44,8 @@ PARAM_ORDER = ("min_cutoff_hz", "half_weight_mm", "rest_cutoff_hz", "rest_mm_s",
 #: this many standard deviations
 STILL_NU = 3.0
 STILL_CLIP = 3.0
+#: the least measurement variance the still models take (mm²)
+_MIN_VAR_MM2 = 1e-4
 
 
 @numba.njit(cache=True, nogil=True, inline="always")
@@ -171,7 +173,7 @@ def _still_models(row: np.ndarray, c: np.ndarray, prm: np.ndarray, x: float, y: 
     w00, w10 = (1.0 - p) * mu / cs, p * (1.0 - mu) / cs
     w01, w11 = p * mu / cm, (1.0 - p) * (1.0 - mu) / cm
     r = prm[_STILL_MUL] * row[c[_SN]]
-    rr = r * r
+    rr = max(r * r, _MIN_VAR_MM2)  # an exactly repeated input must not bring it to 0
     qs, qm = prm[_STILL_Q] * dt, prm[_MOVE_Q]
     m2 = np.empty(2)
     det = np.empty(2)
