@@ -305,9 +305,9 @@ class AdaptiveEuroFilter(FilterBase):
         p0 = np.einsum("nij,nijak->njak", w, cov[:, :, None] + spread)
         dt = dt_s[:, None]
         # still: the position holds (a slow random walk), no velocity
-        xs = np.stack([x0[:, 0, :, 0], np.zeros_like(dt_s)[:, None].repeat(2, 1)], axis=-1)
-        ps = np.stack([p0[:, 0, :, 0] + prm["still_q_mm2_s"] * dt, np.zeros((len(dt_s), 2)),
-                       np.zeros((len(dt_s), 2))], axis=-1)
+        zero = np.zeros_like(x0[:, 0, :, 0])
+        xs = np.stack([x0[:, 0, :, 0], zero], axis=-1)
+        ps = np.stack([p0[:, 0, :, 0] + prm["still_q_mm2_s"] * dt, zero, zero], axis=-1)
         # moving: constant velocity, white acceleration noise
         qm = prm["move_q_mm2_s3"]
         pp, pv = x0[:, 1, :, 0], x0[:, 1, :, 1]

@@ -161,10 +161,12 @@ def _landing(row: np.ndarray, c: np.ndarray, prm: np.ndarray, hb: int, x: float,
 
 @numba.njit(cache=True, nogil=True)
 def _still_models(row: np.ndarray, c: np.ndarray, prm: np.ndarray, x: float, y: float,
-                  dt: float) -> tuple[float, float, float]:
+                  dt: float, st: np.ndarray, cv: np.ndarray, inn: np.ndarray, m2: np.ndarray,
+                  det: np.ndarray) -> tuple[float, float, float]:
     """The still models' step (``AdaptiveEuroFilter._still_models``): advances both models and
     the still probability in ``row``; returns the output's weight on the still model and the
-    still model's position (mm)."""
+    still model's position (mm). ``st`` (2, 2, 2), ``cv`` (2, 2, 3), ``inn`` (2, 2), ``m2``
+    and ``det`` (2,): scratch, reused touch by touch (model, axis, then pos/vel or P00/P01/P11)."""
     p = prm[_STILL_P]
     mu = row[c[_MU]]
     cs = (1.0 - p) * mu + p * (1.0 - mu)
@@ -175,12 +177,7 @@ def _still_models(row: np.ndarray, c: np.ndarray, prm: np.ndarray, x: float, y: 
     r = prm[_STILL_MUL] * row[c[_SN]]
     rr = max(r * r, _MIN_VAR_MM2)  # an exactly repeated input must not bring it to 0
     qs, qm = prm[_STILL_Q] * dt, prm[_MOVE_Q]
-    m2 = np.empty(2)
-    det = np.empty(2)
-    # per axis: state (position, velocity) and covariance (P00, P01, P11) of each model
-    st = np.empty((2, 2, 2))  # model, axis, (pos, vel) after the prediction
-    cv = np.empty((2, 2, 3))
-    inn = np.empty((2, 2))
+    # per axis: each model's state (position, velocity) and covariance after the prediction
     for j in range(2):
         m2[j], det[j] = 0.0, 1.0
         wa = w00 if j == 0 else w01
@@ -250,6 +247,9 @@ def euro_step(s: np.ndarray, xy: np.ndarray, dt_s: np.ndarray, prm: np.ndarray,
     frames = max(lock_frames, prm[_LAND_FRAMES])  # the sums' horizon (the landing reads them)
     keep = 1.0 - 1.0 / frames
     ring_j, ring_w = np.empty(hb), np.empty(hb)  # the landing's scratch, reused touch by touch
+    # the still models' scratch, the same way
+    m_st, m_cv, m_inn = np.empty((2, 2, 2)), np.empty((2, 2, 3)), np.empty((2, 2))
+    m_m2, m_det = np.empty(2), np.empty(2)
     for i in range(s.shape[0]):
         row = s[i]
         x, y, dt = xy[i, 0], xy[i, 1], dt_s[i]
@@ -349,7 +349,8 @@ def euro_step(s: np.ndarray, xy: np.ndarray, dt_s: np.ndarray, prm: np.ndarray,
         if n > 0.0:
             ex, ey = mx, my
         if models_on:
-            g, sx, sy = _still_models(row, c, prm, x, y, dt)
+            g, sx, sy = _still_models(row, c, prm, x, y, dt, m_st, m_cv, m_inn, m_m2,
+                                      m_det)
             ex, ey = ex + g * (sx - ex), ey + g * (sy - ey)
         out[i, 0], out[i, 1] = ex, ey
     return out
