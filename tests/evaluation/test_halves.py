@@ -356,17 +356,24 @@ def test_suite_pitches_key_multiplies_cases_labels_and_renders_them() -> None:
             suite_from_dict({"group": [{**doc["group"][0], "pitches_deg": bad}]})
 
 
+def _own_check_set(name: str, n: int, leave_out: tuple[str, ...] = ()) -> tuple[list, list]:
+    """A check set's cases and every other suite's (but ``leave_out``), after checking that it
+    has ``n`` cases and that no other suite uses its seeds or its placements."""
+    from depthtouch.evaluation.suite import SUITES_DIR
+
+    cases = list(load_suite(name).cases)
+    others = [c for p in SUITES_DIR.glob("*.toml") if p.stem not in (name, *leave_out)
+              for c in load_suite(p.stem).cases]
+    assert len(cases) == n
+    assert not {c.seed for c in cases} & {c.seed for c in others}
+    assert not {placement(c) for c in cases} & {placement(c) for c in others}
+    return cases, others
+
+
 def test_fourth_check_set_has_its_own_seeds_and_placements_and_both_hands() -> None:
     """hard-fresh4: hard's scenes at placements and seeds no other suite uses, every group with
     both hand models."""
-    from depthtouch.evaluation.suite import SUITES_DIR
-
-    others = [load_suite(p.stem).cases for p in SUITES_DIR.glob("*.toml")
-              if p.stem != "hard-fresh4"]
-    cases = load_suite("hard-fresh4").cases
-    assert len(cases) == 56
-    assert not {c.seed for c in cases} & {c.seed for cs in others for c in cs}
-    assert not {placement(c) for c in cases} & {placement(c) for cs in others for c in cs}
+    cases, _ = _own_check_set("hard-fresh4", 56)
     assert {c.scene for c in cases} == {c.scene for c in load_suite("hard").cases}
     for g in {c.group for c in cases}:
         assert {c.hand for c in cases if c.group == g} == {"capsule", "anatomic"}
@@ -408,17 +415,10 @@ def test_pitch55_check_set_fixes_the_pitch_at_placements_of_its_own() -> None:
 def test_motion_check_set_mixes_every_tof_frame_at_placements_of_its_own() -> None:
     """motion-tof: the hard ToF situations with 13 ms of motion mixing, both hands, at
     placements and seeds no other suite uses, every situation on both halves."""
-    from depthtouch.evaluation.suite import SUITES_DIR
-
-    cases = load_suite("motion-tof").cases
-    assert len(cases) == 36
+    cases, others = _own_check_set("motion-tof", 36)
     assert {c.motion_ms for c in cases} == {13.0} and {c.camera for c in cases} == {"kinect-v2-hard"}
     assert {c.hand for c in cases} == {"capsule", "anatomic"}
     assert all("/motion13/" in c.label for c in cases)
-    others = [c for p in SUITES_DIR.glob("*.toml") if p.stem != "motion-tof"
-              for c in load_suite(p.stem).cases]
-    assert not {placement(c) for c in cases} & {placement(c) for c in others}
-    assert not {c.seed for c in cases} & {c.seed for c in others}
     assert all(c.motion_ms == 0.0 for c in others)  # no other suite changed
     for group in {c.group for c in cases}:
         mine = [c for c in cases if c.group == group]
@@ -428,17 +428,10 @@ def test_motion_check_set_mixes_every_tof_frame_at_placements_of_its_own() -> No
 def test_skin_check_set_raises_the_hands_noise_at_placements_of_its_own() -> None:
     """skin-tof: the hard ToF situations with the hand's noise x 1.5 (and the incidence angle's),
     both hands, at placements and seeds no other suite uses, every situation on both halves."""
-    from depthtouch.evaluation.suite import SUITES_DIR
-
-    cases = load_suite("skin-tof").cases
-    assert len(cases) == 40
+    cases, others = _own_check_set("skin-tof", 40)
     assert {c.skin_noise for c in cases} == {1.5} and {c.camera for c in cases} == {"kinect-v2-hard"}
     assert {c.hand for c in cases} == {"capsule", "anatomic"}
     assert all("/skin1.5/" in c.label for c in cases)
-    others = [c for p in SUITES_DIR.glob("*.toml") if p.stem != "skin-tof"
-              for c in load_suite(p.stem).cases]
-    assert not {placement(c) for c in cases} & {placement(c) for c in others}
-    assert not {c.seed for c in cases} & {c.seed for c in others}
     assert all(c.skin_noise == 1.0 for c in others)  # no other suite changed
     for group in {c.group for c in cases}:
         mine = [c for c in cases if c.group == group]
@@ -449,14 +442,7 @@ def test_fifth_check_set_has_its_own_seeds_and_placements_and_both_hands() -> No
     """hard-fresh5: hard's scenes at placements and seeds no other suite uses, every group with
     both hand models (but drift-hold, made after it ran to try its placements with other
     seeds)."""
-    from depthtouch.evaluation.suite import SUITES_DIR
-
-    others = [load_suite(p.stem).cases for p in SUITES_DIR.glob("*.toml")
-              if p.stem not in ("hard-fresh5", "drift-hold")]
-    cases = load_suite("hard-fresh5").cases
-    assert len(cases) == 56
-    assert not {c.seed for c in cases} & {c.seed for cs in others for c in cs}
-    assert not {placement(c) for c in cases} & {placement(c) for cs in others for c in cs}
+    cases, _ = _own_check_set("hard-fresh5", 56, leave_out=("drift-hold",))
     assert {c.scene for c in cases} == {c.scene for c in load_suite("hard").cases}
     for g in {c.group for c in cases}:
         assert {c.hand for c in cases if c.group == g} == {"capsule", "anatomic"}
