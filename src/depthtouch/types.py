@@ -108,6 +108,9 @@ class TouchPoints:
     tl_above_floor_mm: (N,) how far Tl around the point (the mean over the 9x9 pixels around
         it) lies above its floor: 0 where the depth is quiet enough that Tl is the floor; None
         means unknown.
+    attach_share: (N,) the share of the pixels within 2 px around the region (those with a
+        depth) that are its attachment's hand pixels: a fingertip's hand lies at its back only,
+        a patch of a resting hand or forearm is surrounded by its hand; None means unknown.
     """
 
     xy_px: np.ndarray
@@ -121,6 +124,7 @@ class TouchPoints:
     offset_px: np.ndarray | None = None
     core_height_mm: np.ndarray | None = None
     tl_above_floor_mm: np.ndarray | None = None
+    attach_share: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         n = self.xy_px.shape[0] if self.xy_px.ndim == 2 else -1
@@ -142,6 +146,8 @@ class TouchPoints:
             _check_shape("TouchPoints.core_height_mm", self.core_height_mm, (n,))
         if self.tl_above_floor_mm is not None:
             _check_shape("TouchPoints.tl_above_floor_mm", self.tl_above_floor_mm, (n,))
+        if self.attach_share is not None:
+            _check_shape("TouchPoints.attach_share", self.attach_share, (n,))
 
     @classmethod
     def empty(cls) -> TouchPoints:

@@ -194,6 +194,24 @@ def test_attachment_is_a_fingers_width_for_a_tip_and_long_for_a_forearm_edge(bou
     assert ((edge.attach_px / 2 - 4) * MM_PER_PX > 30.0).all()
 
 
+def test_a_fingertips_hand_lies_at_its_back_and_a_resting_palms_patch_lies_in_its_hand(bounds):
+    """The attachment's share of the ring 2 px around a region (TouchPoints.attach_share, read
+    by TrackingConfig.enclosed_share_max): a fingertip's hand pixels are its finger's ridge
+    behind it, a small part of the ring (measured 0.10-0.15 here); a patch of a resting palm
+    whose top lies just above Tu (a dip of it into the band) is surrounded by the palm
+    (measured 0.93)."""
+    for pitch in (20.0, 35.0, 60.0):
+        tip = detect(bounds, [Finger(320, 240, 90, pitch_deg=pitch)])
+        assert len(tip) == 1 and tip.attach_share is not None
+        assert 0.0 < tip.attach_share[0] < 0.25
+    palm = np.zeros((480, 640), np.float32)
+    palm[150:300, 250:450] = 30.0  # a palm lying on the surface, its top 5 mm above Tu
+    palm[215:227, 340:352] = 15.0  # a patch of it 12 px wide that dips into the band
+    patch = detect(bounds, [], flat=palm)
+    assert len(patch) == 1 and patch.attach_share is not None
+    assert patch.attach_share[0] > 0.6
+
+
 def test_mixed_pixels_at_the_side_of_a_raised_hand_sit_next_to_a_high_step(bounds):
     """A speck of the band (mixed pixels) at the side of a hand 150 mm up: its attached pixels
     are the hand's, far higher than a finger rising from the band (TrackingConfig.step_max_mm)."""

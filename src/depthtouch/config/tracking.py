@@ -75,6 +75,15 @@ class TrackingConfig:
         refused points at true contacts lie 2.3-4.3 mm high, 5th-95th percentile, and the
         others 2.5-25 mm: recall 0.940 -> 0.964, false touches 36 -> 34; ranges [0, 100] mm,
         0 turns it off, and [0, 1]).
+    enclosed_share_max: a fingertip hangs on its finger: its hand lies at its back, and in front
+        of it and beside it lies the surface. A region whose attachment's hand pixels make more
+        than this share of the pixels within 2 px around it (TouchPoints.attach_share) lies in
+        its hand, not at a finger's end (a patch of a resting palm, wrist or forearm whose top
+        stands near Tu and flickers in and out of the band), and gives no evidence, unless it
+        looks like a steep finger's top (default 1.0: off; range [0, 1]).
+    enclosed_height_min_mm: ... and whose tip (TouchPoints.height_mm, the lower quarter of its
+        cap) stands at least this high: a touching fingertip reaches the surface, a patch on
+        the top of a resting hand does not (default 0: any height; range [0, 100]).
     step_max_mm: a finger rises from the band gradually; a region whose attached hand pixels
         lie higher than this (median, mm above the surface) is mixed or smeared pixels at the
         side of a raised hand, not a fingertip, and gives no evidence (default 80 mm, chosen on
@@ -234,6 +243,8 @@ class TrackingConfig:
     attach_max_mm: float = 30.0
     attach_low_mm: float = 3.0
     attach_low_evidence: float = 0.25
+    enclosed_share_max: float = 1.0
+    enclosed_height_min_mm: float = 0.0
     step_max_mm: float = 80.0
     flat_max_mm: float = 10.0
     up_frames: int = 3
@@ -290,6 +301,8 @@ class TrackingConfig:
         _range("tracking.attach_max_mm", self.attach_max_mm, 0.0, 10000.0)
         _range("tracking.attach_low_mm", self.attach_low_mm, 0.0, 100.0)
         _range("tracking.attach_low_evidence", self.attach_low_evidence, 0.0, 1.0)
+        _range("tracking.enclosed_share_max", self.enclosed_share_max, 0.0, 1.0)
+        _range("tracking.enclosed_height_min_mm", self.enclosed_height_min_mm, 0.0, 100.0)
         _range("tracking.step_max_mm", self.step_max_mm, 0.0, 10000.0)
         _range("tracking.flat_max_mm", self.flat_max_mm, 0.0, 100.0)
         _range("tracking.merge_mm", self.merge_mm, 0.0, 200.0)

@@ -85,7 +85,7 @@ def find_touch_points(
                               config.tip_shift_mm)
     return TouchPoints(xy, out.height_mm, out.area_px, out.hand_xy_px, out.hand_at_border,
                        out.attach_px, out.attach_height_mm, out.back_spread_mm, offset,
-                       core_heights_mm(depth, xy, b), above)
+                       core_heights_mm(depth, xy, b), above, out.attach_share)
 
 
 def core_heights_mm(depth: np.ndarray, xy_px: np.ndarray, bounds: BandBounds) -> np.ndarray:

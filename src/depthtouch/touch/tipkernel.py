@@ -13,10 +13,11 @@ check that both give the same points.
 
 :func:`frame_points` is the boundary: named tuples of arrays in (:class:`KernelSurface`,
 :class:`KernelRegions`, :class:`TipParams`), one out (:class:`FramePoints`), units in the names.
-Inside, the compiled kernel takes the arrays one by one and returns (N, 10) rows: x, y (image px,
+Inside, the compiled kernel takes the arrays one by one and returns (N, 11) rows: x, y (image px,
 sub-pixel), height (mm, NaN when unknown), area (px), hand x, hand y (px), hand at border (0/1),
 attachment (hand pixels within 2 px of the region), their median height (mm), the spread of the
-heights behind the tip (mm, see :func:`tipmaps.back_spread`).
+heights behind the tip (mm, see :func:`tipmaps.back_spread`), the attachment's share of the ring
+2 px around the region.
 """
 
 from __future__ import annotations
@@ -30,7 +31,7 @@ import numpy as np
 from .fingertip import extremity, paper, project, split
 from .tipmaps import back_spread, chamfer, near_mask, pixel_height, smooth_heights
 
-N_OUT = 10
+N_OUT = 11
 #: the growth into the tip cap takes smoothed heights above this fraction of Tl (they give the
 #: tip's height); the contact point is placed on those above the firmer fraction
 _GROW_TL = 0.5
@@ -74,6 +75,21 @@ def _attach(near: np.ndarray, depth: np.ndarray, high_lo: np.ndarray,
     if n == 0:
         return 0, 0.0, 0.0, False, np.nan
     return n, sx / n, sy / n, border, float(np.median(hv[:n]))
+
+
+@numba.njit(cache=True, nogil=True)
+def _ring_known(near: np.ndarray, reg: np.ndarray, depth: np.ndarray, valid: np.ndarray,
+                x0: int, y0: int) -> int:
+    """How many of the ``near`` pixels outside the region ``reg`` have a depth on a usable
+    pixel: the ring that the attachment's hand pixels are counted in (window at x0, y0)."""
+    h, w = near.shape
+    n = 0
+    for y in range(h):
+        for x in range(w):
+            if near[y, x] and not reg[y, x] and depth[y0 + y, x0 + x] > 0 \
+                    and valid[y0 + y, x0 + x]:
+                n += 1
+    return n
 
 
 class KernelSurface(NamedTuple):
@@ -123,7 +139,9 @@ class FramePoints(NamedTuple):
     of the region (its attachment: about twice its length in px), their median height above the
     surface (mm; a finger rises from the band gradually, the side of a raised hand does not), and
     the spread of the heights behind the tip (mm, NaN when unknown; a finger's is large, a flat
-    object's top is level)."""
+    object's top is level); and the share of the ring 2 px around the region (pixels with a depth)
+    that those hand pixels make (a fingertip hangs on its finger at its back; a patch of a
+    resting hand or forearm lies in its hand, which surrounds it)."""
 
     xy_px: np.ndarray
     height_mm: np.ndarray
@@ -133,6 +151,7 @@ class FramePoints(NamedTuple):
     attach_px: np.ndarray
     attach_height_mm: np.ndarray
     back_spread_mm: np.ndarray
+    attach_share: np.ndarray
 
 
 def frame_points(depth: np.ndarray, hands: np.ndarray, hand_scale: int, surface: KernelSurface,
@@ -150,7 +169,7 @@ def frame_points(depth: np.ndarray, hands: np.ndarray, hand_scale: int, surface:
                         float(p.mm_per_px), float(p.beside_px))
     return FramePoints(out[:, 0:2].copy(), out[:, 2].copy(), out[:, 3].astype(np.int64),
                        out[:, 4:6].copy(), out[:, 6] > 0, out[:, 7].astype(np.int64),
-                       out[:, 8].copy(), out[:, 9].copy())
+                       out[:, 8].copy(), out[:, 9].copy(), out[:, 10].copy())
 
 
 @numba.njit(cache=True, nogil=True)
@@ -160,7 +179,7 @@ def _frame_points(
     core: np.ndarray, open_pad: int, boxes: np.ndarray, masks: np.ndarray, mask_start: np.ndarray,
     r0: float, method: int, paper_ds: int, paper_tt: float, mm_px: float, beside_px: float,
 ) -> np.ndarray:
-    """Touch points of all regions of a frame: (N, 10) rows (see the module doc).
+    """Touch points of all regions of a frame: (N, 11) rows (see the module doc).
 
     Each region is worked on in a window 2 rr + 2 px around its box (the growth reaches 2 rr,
     the hand attaches within 2 px); the band 3 r0 + 3 px around it is looked at only when other
@@ -194,6 +213,7 @@ def _frame_points(
                                                y0, surf, fact, to_mm)
         if n_att < 3:
             continue
+        share = n_att / max(1, _ring_known(near, reg, depth, valid, x0, y0))
         ex = np.empty(area, np.int64)
         ey = np.empty(area, np.int64)
         k = 0
@@ -238,12 +258,14 @@ def _frame_points(
                     sy += ey[j]
             if n_p == 0:
                 continue
-            phx, phy, pborder, patt = hx, hy, border, n_att
+            phx, phy, pborder, patt, pshare = hx, hy, border, n_att, share
             if n_parts > 1:
-                na, ax, ay, ab, _ = _attach(near_mask(part, 2), depth, high_lo, high_hi, hands,
+                pnear = near_mask(part, 2)
+                na, ax, ay, ab, _ = _attach(pnear, depth, high_lo, high_hi, hands,
                                             scale, x0, y0, surf, fact, to_mm)
                 if na >= 3:
                     phx, phy, pborder = ax, ay, ab
+                pshare = na / max(1, _ring_known(pnear, part, depth, valid, x0, y0))
                 # a long edge cut into "fingertips" is still one long attachment: each part
                 # gets at least its share of the whole region's
                 patt = max(na, n_att // n_parts)
@@ -272,6 +294,7 @@ def _frame_points(
             out[n_out, 8] = att_h
             out[n_out, 9] = (back_spread(depth, surf, fact, valid, to_mm, px_ + x0, py_ + y0,
                                           ddx / nn, ddy / nn, mm_px) if nn > 1e-6 else np.nan)
+            out[n_out, 10] = pshare
             n_out += 1
             if n_out == out.shape[0]:
                 return out[:n_out]

@@ -79,14 +79,16 @@ def evidence_weights(points: TouchPoints, xy: list[XY], area_px: list[int], ok_n
     more than ``attach_max_mm`` (the broad edge of a forearm or a palm lying in the band, not
     a fingertip at the end of a finger) counts nothing (``attach_low_evidence`` if it rests
     within ``attach_low_mm`` of the surface: a finger of a hand held low), and so does one
-    whose attached hand pixels lie higher than ``step_max_mm`` (a finger rises from the band
-    gradually; mixed pixels at the side of a raised hand jump), and so does one with level
+    whose hand surrounds it (``enclosed_share_max``: a patch of a resting palm or forearm
+    whose top flickers in and out of the band), and so does one whose attached hand pixels
+    lie higher than ``step_max_mm`` (a finger rises from the band gradually; mixed pixels at
+    the side of a raised hand jump), and so does one with level
     heights behind it (``flat_max_mm``: the top of a held book, the flank of a forearm; a
     finger rises and is narrow), and so does a point on the axis of another point low
     enough to go down, behind it (``behind_lat_mm``: a finger has one tip; what lies behind
     it on its axis is the finger's flank). The top of a steep finger (``steep``) counts
-    ``steep_evidence`` instead of the size test's weight and is exempt from the step and flat
-    tests. Without a scale (no intrinsics: ``scale`` None) every frame counts whole.
+    ``steep_evidence`` instead of the size test's weight and is exempt from the enclosure,
+    step and flat tests. Without a scale (no intrinsics: ``scale`` None) every frame counts whole.
     """
     n = len(area_px)
     if scale is None:
@@ -119,6 +121,13 @@ def evidence_weights(points: TouchPoints, xy: list[XY], area_px: list[int], ok_n
         w = [(min(v, low_w) if h <= low else 0.0) if a > long_px else v
              for v, a, h in zip(w, attach_px.tolist(), points.height_mm.tolist(),
                                 strict=True)]
+    share = points.attach_share
+    if share is not None and config.enclosed_share_max < 1.0:
+        # (an unknown share or height, NaN, compares False: no evidence taken away)
+        enc, h_min = config.enclosed_share_max, config.enclosed_height_min_mm
+        w = [0.0 if a > enc and h >= h_min and not s else v
+             for v, a, h, s in zip(w, share.tolist(), points.height_mm.tolist(), steep,
+                                   strict=True)]
     step = config.step_max_mm
     if attach_height_mm is not None and step > 0:
         # (an unknown height, NaN, compares False: no evidence taken away)
