@@ -467,3 +467,19 @@ def test_drift_hold_check_set_tries_fresh5s_misses_elsewhere_and_with_other_seed
         mine = [c for c in cases if c.group == group]
         assert {c.hand for c in mine} == {"capsule", "anatomic"}
         assert select_half(mine, "tune") and select_half(mine, "held-out"), group
+
+
+def test_rest_tof_check_set_rests_forearms_before_every_camera_kind() -> None:
+    """rest-tof: a forearm resting on the table before ToF (with and without the hand's noise
+    x 1.5), structured light and a near stereo camera, at placements no other suite uses but
+    skin-tof's own (whose held-out forearm rest it tries with other seeds), seeds no other
+    suite uses, both hands, every group on both halves."""
+    cases, others = _own_check_set("rest-tof", 48, leave_out=("skin-tof",))
+    assert {c.scene for c in cases} == {"rest"}
+    assert {c.camera for c in cases} == {"kinect-v2-hard", "kinect-v1-hard", "realsense-d435"}
+    assert {c.hand for c in cases} == {"capsule", "anatomic"}
+    skin = {placement(c) for c in load_suite("skin-tof").cases if c.group == "forearm-rest-skin"}
+    assert {placement(c) for c in cases if c.group == "rest-at-skin"} == skin
+    for group in {c.group for c in cases}:
+        mine = [c for c in cases if c.group == group]
+        assert select_half(mine, "tune") and select_half(mine, "held-out"), group
