@@ -527,21 +527,26 @@ def test_a_broadly_attached_region_resting_on_the_surface_counts_a_little(
     assert downs[:1] == ([] if down_at is None else [down_at])
 
 
-@pytest.mark.parametrize(("share", "height_mm", "share_max", "goes_down"), [
-    (0.15, 5.0, 0.3, True),      # a fingertip: its hand at its back
-    (0.5, 5.0, 0.3, False),      # a patch of a resting palm, its hand all around
-    (0.5, 2.5, 0.3, True),       # ... reaching down to the surface: a touching tip
-    (np.nan, 5.0, 0.3, True),    # unknown: nothing taken away
-    (0.5, 5.0, 1.0, True),       # the test off
+@pytest.mark.parametrize(("share", "height_mm", "attach_mm", "share_max", "goes_down"), [
+    (0.15, 5.0, 30.0, 0.3, True),      # a fingertip: its hand at its back
+    (0.5, 5.0, 30.0, 0.3, False),      # a patch of a resting palm, its hand all around
+    (0.5, 5.0, np.nan, 0.3, False),    # ... the palm's height unknown
+    (0.5, 2.5, 30.0, 0.3, True),       # ... reaching down to the surface: a touching tip
+    (0.5, 5.0, 55.0, 0.3, True),       # ... its hand rising steeply: a finger
+    (np.nan, 5.0, 30.0, 0.3, True),    # unknown: nothing taken away
+    (0.5, 5.0, 30.0, 1.0, True),       # the test off
 ])
 def test_a_region_its_hand_surrounds_gives_no_evidence(share: float, height_mm: float,
-                                                       share_max: float, goes_down: bool) -> None:
-    """A region whose attachment makes more than enclosed_share_max of the ring around it and
-    whose tip stands at least enclosed_height_min_mm high lies in its hand: no evidence."""
+                                                       attach_mm: float, share_max: float,
+                                                       goes_down: bool) -> None:
+    """A region whose attachment makes more than enclosed_share_max of the ring around it,
+    whose tip stands at least enclosed_height_min_mm high and whose hand lies lower than
+    enclosed_attach_max_mm lies in its hand: no evidence."""
     tip = TouchPoints(np.array([[100.0, 100.0]]), np.array([height_mm]), np.array([300]),
-                      np.array([[np.nan, np.nan]]), None, np.array([10]),
+                      np.array([[np.nan, np.nan]]), None, np.array([10]), np.array([attach_mm]),
                       attach_share=np.array([share]))
-    cfg = TrackingConfig(down_frames=2, enclosed_share_max=share_max, enclosed_height_min_mm=3.5)
+    cfg = TrackingConfig(down_frames=2, enclosed_share_max=share_max, enclosed_height_min_mm=3.5,
+                         enclosed_attach_max_mm=40.0)
     states = [s for f in run(Tracker(cfg, scale_mm_per_px=1.0), [tip] * 8) for _, s in f]
     assert ("down" in states) == goes_down
 

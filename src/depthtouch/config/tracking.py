@@ -84,6 +84,10 @@ class TrackingConfig:
     enclosed_height_min_mm: ... and whose tip (TouchPoints.height_mm, the lower quarter of its
         cap) stands at least this high: a touching fingertip reaches the surface, a patch on
         the top of a resting hand does not (default 0: any height; range [0, 100]).
+    enclosed_attach_max_mm: ... and whose attachment (the median height of its hand pixels,
+        TouchPoints.attach_height_mm) lies lower than this: the hand around a patch of a
+        resting hand is that hand's top, just above Tu; a finger rises steeply behind its tip
+        (default 1000: any; range [0, 10000]).
     step_max_mm: a finger rises from the band gradually; a region whose attached hand pixels
         lie higher than this (median, mm above the surface) is mixed or smeared pixels at the
         side of a raised hand, not a fingertip, and gives no evidence (default 80 mm, chosen on
@@ -245,6 +249,7 @@ class TrackingConfig:
     attach_low_evidence: float = 0.25
     enclosed_share_max: float = 1.0
     enclosed_height_min_mm: float = 0.0
+    enclosed_attach_max_mm: float = 1000.0
     step_max_mm: float = 80.0
     flat_max_mm: float = 10.0
     up_frames: int = 3
@@ -303,6 +308,7 @@ class TrackingConfig:
         _range("tracking.attach_low_evidence", self.attach_low_evidence, 0.0, 1.0)
         _range("tracking.enclosed_share_max", self.enclosed_share_max, 0.0, 1.0)
         _range("tracking.enclosed_height_min_mm", self.enclosed_height_min_mm, 0.0, 100.0)
+        _range("tracking.enclosed_attach_max_mm", self.enclosed_attach_max_mm, 0.0, 10000.0)
         _range("tracking.step_max_mm", self.step_max_mm, 0.0, 10000.0)
         _range("tracking.flat_max_mm", self.flat_max_mm, 0.0, 100.0)
         _range("tracking.merge_mm", self.merge_mm, 0.0, 200.0)

@@ -125,9 +125,11 @@ def evidence_weights(points: TouchPoints, xy: list[XY], area_px: list[int], ok_n
     if share is not None and config.enclosed_share_max < 1.0:
         # (an unknown share or height, NaN, compares False: no evidence taken away)
         enc, h_min = config.enclosed_share_max, config.enclosed_height_min_mm
-        w = [0.0 if a > enc and h >= h_min and not s else v
-             for v, a, h, s in zip(w, share.tolist(), points.height_mm.tolist(), steep,
-                                   strict=True)]
+        a_max = config.enclosed_attach_max_mm
+        ah = ([math.nan] * n if attach_height_mm is None else attach_height_mm.tolist())
+        w = [0.0 if a > enc and h >= h_min and not at >= a_max and not s else v
+             for v, a, h, at, s in zip(w, share.tolist(), points.height_mm.tolist(), ah, steep,
+                                       strict=True)]
     step = config.step_max_mm
     if attach_height_mm is not None and step > 0:
         # (an unknown height, NaN, compares False: no evidence taken away)
