@@ -86,6 +86,7 @@ def find_touch_points(
     a_out: list[int] = []
     hand_out: list[tuple[float, float]] = []
     border_out: list[bool] = []
+    share_out: list[float] = []
     for mask, (bx, by, bw, bh), area in zip(regions.masks, regions.bbox_xywh, regions.area_px):
         x0, y0 = max(0, int(bx) - margin), max(0, int(by) - margin)
         x1, y1 = min(W, int(bx + bw) + margin), min(H, int(by + bh) + margin)
@@ -150,6 +151,11 @@ def find_touch_points(
                 cv2.dilate(reg, k_attach), hand_roi)
             border_out.append(bool(cv2.countNonZero(cv2.bitwise_and(
                 att, cv2.inRange(levels, 2, 2)))))
+            # the attachment's share of the ring around the region: the pixels within 2 px of
+            # it, outside it, with a depth on a usable pixel
+            ring = cv2.bitwise_and(cv2.dilate(reg, k_attach), cv2.bitwise_not(reg))
+            ring &= (depth[y0:y1, x0:x1] > 0) & bounds.valid[y0:y1, x0:x1]
+            share_out.append(cv2.countNonZero(att) / max(1, cv2.countNonZero(ring)))
     if not xy_out:
         return TouchPoints.empty()
     xy = np.asarray(xy_out, np.float64)
@@ -158,7 +164,7 @@ def find_touch_points(
     return TouchPoints(
         xy, np.asarray(h_out, np.float64),
         np.asarray(a_out, np.int64), np.asarray(hand_out, np.float64),
-        np.asarray(border_out, bool),
+        np.asarray(border_out, bool), attach_share=np.asarray(share_out, np.float64),
     )
 
 

@@ -166,6 +166,8 @@ def test_compiled_kernel_matches_the_array_reference(scene, camera, monkeypatch)
             d = np.linalg.norm(ref.xy_px[:, None] - got.xy_px[None], axis=2)
             dist.extend(d.min(axis=1))
             np.testing.assert_array_equal(np.sort(got.area_px), np.sort(ref.area_px))
+            assert got.attach_share is not None and ref.attach_share is not None
+            np.testing.assert_allclose(np.sort(got.attach_share), np.sort(ref.attach_share))
     # measured: identical on most frames; up to ~0.9 px apart where fingertips or objects are
     # near each other (the nearest-region test looks at a window instead of the whole frame)
     assert np.median(dist) < 0.01
