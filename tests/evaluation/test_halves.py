@@ -370,6 +370,13 @@ def _own_check_set(name: str, n: int, leave_out: tuple[str, ...] = ()) -> tuple[
     return cases, others
 
 
+def _every_group_on_both_halves(cases: list) -> None:
+    """Each of the cases' groups (situations) has cases on the tune and on the held-out half."""
+    for group in {c.group for c in cases}:
+        mine = [c for c in cases if c.group == group]
+        assert select_half(mine, "tune") and select_half(mine, "held-out"), group
+
+
 def test_fourth_check_set_has_its_own_seeds_and_placements_and_both_hands() -> None:
     """hard-fresh4: hard's scenes at placements and seeds no other suite uses, every group with
     both hand models."""
@@ -420,9 +427,7 @@ def test_motion_check_set_mixes_every_tof_frame_at_placements_of_its_own() -> No
     assert {c.hand for c in cases} == {"capsule", "anatomic"}
     assert all("/motion13/" in c.label for c in cases)
     assert all(c.motion_ms == 0.0 for c in others)  # no other suite changed
-    for group in {c.group for c in cases}:
-        mine = [c for c in cases if c.group == group]
-        assert select_half(mine, "tune") and select_half(mine, "held-out"), group
+    _every_group_on_both_halves(cases)
 
 
 def test_skin_check_set_raises_the_hands_noise_at_placements_of_its_own() -> None:
@@ -434,9 +439,7 @@ def test_skin_check_set_raises_the_hands_noise_at_placements_of_its_own() -> Non
     assert {c.hand for c in cases} == {"capsule", "anatomic"}
     assert all("/skin1.5/" in c.label for c in cases)
     assert all(c.skin_noise == 1.0 for c in others)  # no other suite changed
-    for group in {c.group for c in cases}:
-        mine = [c for c in cases if c.group == group]
-        assert select_half(mine, "tune") and select_half(mine, "held-out"), group
+    _every_group_on_both_halves(cases)
 
 
 def test_fifth_check_set_has_its_own_seeds_and_placements_and_both_hands() -> None:
@@ -465,9 +468,8 @@ def test_drift_hold_check_set_tries_fresh5s_misses_elsewhere_and_with_other_seed
     shared = {placement(c) for c in cases} & {placement(c) for c in others}
     assert shared and shared <= fresh5
     for group in {c.group for c in cases}:
-        mine = [c for c in cases if c.group == group]
-        assert {c.hand for c in mine} == {"capsule", "anatomic"}
-        assert select_half(mine, "tune") and select_half(mine, "held-out"), group
+        assert {c.hand for c in cases if c.group == group} == {"capsule", "anatomic"}
+    _every_group_on_both_halves(cases)
 
 
 def test_rest_tof_check_set_rests_forearms_before_every_camera_kind() -> None:
@@ -481,6 +483,4 @@ def test_rest_tof_check_set_rests_forearms_before_every_camera_kind() -> None:
     assert {c.hand for c in cases} == {"capsule", "anatomic"}
     skin = {placement(c) for c in load_suite("skin-tof").cases if c.group == "forearm-rest-skin"}
     assert {placement(c) for c in cases if c.group == "rest-at-skin"} == skin
-    for group in {c.group for c in cases}:
-        mine = [c for c in cases if c.group == group]
-        assert select_half(mine, "tune") and select_half(mine, "held-out"), group
+    _every_group_on_both_halves(cases)
