@@ -15,7 +15,7 @@ from __future__ import annotations
 import logging
 import math
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any, Protocol
 
 import cv2
@@ -27,6 +27,7 @@ from .surface.gate import LearningGate
 from .surface.model import SurfaceModel
 from .surface.surface import Surface
 from .touch.points import find_touch_points
+from .touch.recent import RecentDepth
 from .touch.regions import band_regions
 from .tracking.filters import TouchFilter, make_filter
 from .tracking.tracker import Tracker, TrackUpdate
@@ -44,12 +45,12 @@ def _warm_up() -> None:
         return
     from . import firstrun, runs
     from .surface import adapt
-    from .touch import handmap, regions, tipkernel
+    from .touch import handmap, recent, regions, tipkernel
     from .tracking import eurokernel
 
     # a cold numba cache (the first run after installing) takes ~20 s: firstrun says so
     firstrun.warm_up((tipkernel.warm_up, handmap.warm_up, regions.warm_up, adapt.warm_up,
-                      eurokernel.warm_up),
+                      eurokernel.warm_up, recent.warm_up),
                      kernels=(tipkernel._frame_points, runs.parts_of_runs, eurokernel.euro_step))
     _warm = True
 
@@ -110,6 +111,11 @@ class Pipeline:
         self._filter: TouchFilter = (make_filter(self.config.filter) if path_filter is None
                                      else path_filter)
         self._tracker = Tracker(self.config.tracking, self.config.touchpoints)
+        # the frames of the last second, kept only where the tracker asks how much the heights
+        # around a point changed (TrackingConfig.enclosed_change_max_mm)
+        tc = self.config.tracking
+        self._recent = (RecentDepth() if tc.enclosed_share_max < 1.0
+                        and tc.enclosed_change_max_mm > 0.0 else None)
         self._reported: dict[int, tuple[float, float]] = {}  # last position sent per id, px
         self._active: set[int] = set()
         self._last_frame: Frame | None = None
@@ -139,6 +145,8 @@ class Pipeline:
         self.surface.reset()
         self._tracker.reset()
         self._filter.reset()
+        if self._recent is not None:
+            self._recent.reset()
         self._reported.clear()
         self._active.clear()
 
@@ -192,6 +200,11 @@ class Pipeline:
         regions = band_regions(frame.depth, b)
         t1 = time.perf_counter()
         points = find_touch_points(frame.depth, regions, b, self.config.touchpoints)
+        if self._recent is not None:
+            if len(points):
+                points = replace(points, recent_change_mm=self._recent.change_mm(
+                    frame.depth, points.xy_px, frame.timestamp_s, b.to_mm, b.factor))
+            self._recent.update(frame.depth, frame.timestamp_s)
         t2 = time.perf_counter()
         updates = self._tracker.update(points, frame.timestamp_s)
         t3 = time.perf_counter()
@@ -213,6 +226,8 @@ class Pipeline:
         events = self._events(frame, self._tracker.end_all())
         self.surface.relearn()
         self._filter.reset()
+        if self._recent is not None:
+            self._recent.reset()
         self.stats.relearns += 1
         return self._result(frame, events, "relearned")
 

@@ -7,7 +7,7 @@ an ``empty()`` constructor. Nothing here mutates its inputs.
 from __future__ import annotations
 
 import contextlib
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from types import TracebackType
 from typing import Any, Literal, Protocol, TypeVar
 
@@ -111,6 +111,10 @@ class TouchPoints:
     attach_share: (N,) the share of the pixels within 2 px around the region (those with a
         depth) that are its attachment's hand pixels: a fingertip's hand lies at its back only,
         a patch of a resting hand or forearm is surrounded by its hand; None means unknown.
+    recent_change_mm: (N,) the largest change of the height around the point (the median of
+        its 5x5 pixels) between this frame and the frames of the last second
+        (:mod:`depthtouch.touch.recent`): a finger arrives, a resting hand's patch lies in a
+        hand that has not moved (NaN when unknown); None means not measured.
     """
 
     xy_px: np.ndarray
@@ -125,6 +129,7 @@ class TouchPoints:
     core_height_mm: np.ndarray | None = None
     tl_above_floor_mm: np.ndarray | None = None
     attach_share: np.ndarray | None = None
+    recent_change_mm: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         n = self.xy_px.shape[0] if self.xy_px.ndim == 2 else -1
@@ -148,6 +153,8 @@ class TouchPoints:
             _check_shape("TouchPoints.tl_above_floor_mm", self.tl_above_floor_mm, (n,))
         if self.attach_share is not None:
             _check_shape("TouchPoints.attach_share", self.attach_share, (n,))
+        if self.recent_change_mm is not None:
+            _check_shape("TouchPoints.recent_change_mm", self.recent_change_mm, (n,))
 
     @classmethod
     def empty(cls) -> TouchPoints:
@@ -157,17 +164,10 @@ class TouchPoints:
         return int(self.xy_px.shape[0])
 
     def __getitem__(self, index: np.ndarray | slice) -> TouchPoints:
-        border = None if self.hand_at_border is None else self.hand_at_border[index]
-        attach = None if self.attach_px is None else self.attach_px[index]
-        att_h = None if self.attach_height_mm is None else self.attach_height_mm[index]
-        back = None if self.back_spread_mm is None else self.back_spread_mm[index]
-        off = None if self.offset_px is None else self.offset_px[index]
-        core = None if self.core_height_mm is None else self.core_height_mm[index]
-        tl = None if self.tl_above_floor_mm is None else self.tl_above_floor_mm[index]
-        return TouchPoints(
-            self.xy_px[index], self.height_mm[index], self.area_px[index], self.hand_xy_px[index],
-            border, attach, att_h, back, off, core, tl,
-        )
+        """The points ``index`` selects, with every per-point array."""
+        parts: dict[str, Any] = {f.name: None if (v := getattr(self, f.name)) is None
+                                 else v[index] for f in fields(self)}
+        return TouchPoints(**parts)
 
 
 @dataclass(frozen=True)

@@ -347,6 +347,8 @@ def test_tl_above_its_floor_is_read_around_each_point_and_kept_with_the_points(b
     sub = p[np.array([0])]
     np.testing.assert_array_equal(sub.tl_above_floor_mm, p.tl_above_floor_mm[:1])
     np.testing.assert_array_equal(sub.core_height_mm, p.core_height_mm[:1])
+    assert p.attach_share is not None and sub.attach_share is not None
+    np.testing.assert_array_equal(sub.attach_share, p.attach_share[:1])
 
 
 def test_the_shift_is_an_offset_tracking_does_not_use(bounds):

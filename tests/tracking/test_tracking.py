@@ -551,6 +551,25 @@ def test_a_region_its_hand_surrounds_gives_no_evidence(share: float, height_mm: 
     assert ("down" in states) == goes_down
 
 
+@pytest.mark.parametrize(("change_mm", "change_max_mm", "goes_down"), [
+    (2.0, 5.0, False),     # a patch of a hand that has not moved: no evidence
+    (18.0, 5.0, True),     # fingers side by side that just arrived: the share alone is no cause
+    (np.nan, 5.0, True),   # unknown (just after learning): nothing taken away
+    (18.0, 0.0, False),    # no change condition: the share alone decides, as before
+])
+def test_a_surrounded_region_gives_no_evidence_only_where_nothing_moved(
+        change_mm: float, change_max_mm: float, goes_down: bool) -> None:
+    """With enclosed_change_max_mm, the enclosure refuses a region only where the heights
+    around it changed by less than that over the last second (TouchPoints.recent_change_mm)."""
+    tip = TouchPoints(np.array([[100.0, 100.0]]), np.array([5.0]), np.array([300]),
+                      np.array([[np.nan, np.nan]]), None, np.array([10]), np.array([30.0]),
+                      attach_share=np.array([0.5]), recent_change_mm=np.array([change_mm]))
+    cfg = TrackingConfig(down_frames=2, enclosed_share_max=0.3,
+                         enclosed_change_max_mm=change_max_mm)
+    states = [s for f in run(Tracker(cfg, scale_mm_per_px=1.0), [tip] * 8) for _, s in f]
+    assert ("down" in states) == goes_down
+
+
 @pytest.mark.parametrize(("step_mm", "goes_down"), [(35.0, True), (150.0, False), (np.nan, True)])
 def test_a_region_next_to_a_high_step_gives_no_evidence(step_mm: float, goes_down: bool) -> None:
     """Mixed pixels at the side of a hand 150 mm up are not a fingertip; a finger rising from

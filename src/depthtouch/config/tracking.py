@@ -88,6 +88,12 @@ class TrackingConfig:
         TouchPoints.attach_height_mm) lies lower than this: the hand around a patch of a
         resting hand is that hand's top, just above Tu; a finger rises steeply behind its tip
         (default 1000: any; range [0, 10000]).
+    enclosed_change_max_mm: ... and around which the heights changed by less than this over
+        the last second (TouchPoints.recent_change_mm, :mod:`depthtouch.touch.recent`): a
+        touch starts with a finger arriving, a resting hand's patch lies in a hand that has not
+        moved; fingers side by side, whose neighbours fill a touching finger's ring as a
+        resting hand does, arrive too. An unknown change (the first 0.15 s after the surface
+        was learned) takes no evidence away (default 0: no such condition; range [0, 1000]).
     step_max_mm: a finger rises from the band gradually; a region whose attached hand pixels
         lie higher than this (median, mm above the surface) is mixed or smeared pixels at the
         side of a raised hand, not a fingertip, and gives no evidence (default 80 mm, chosen on
@@ -250,6 +256,7 @@ class TrackingConfig:
     enclosed_share_max: float = 1.0
     enclosed_height_min_mm: float = 0.0
     enclosed_attach_max_mm: float = 1000.0
+    enclosed_change_max_mm: float = 0.0
     step_max_mm: float = 80.0
     flat_max_mm: float = 10.0
     up_frames: int = 3
@@ -309,6 +316,7 @@ class TrackingConfig:
         _range("tracking.enclosed_share_max", self.enclosed_share_max, 0.0, 1.0)
         _range("tracking.enclosed_height_min_mm", self.enclosed_height_min_mm, 0.0, 100.0)
         _range("tracking.enclosed_attach_max_mm", self.enclosed_attach_max_mm, 0.0, 10000.0)
+        _range("tracking.enclosed_change_max_mm", self.enclosed_change_max_mm, 0.0, 1000.0)
         _range("tracking.step_max_mm", self.step_max_mm, 0.0, 10000.0)
         _range("tracking.flat_max_mm", self.flat_max_mm, 0.0, 100.0)
         _range("tracking.merge_mm", self.merge_mm, 0.0, 200.0)

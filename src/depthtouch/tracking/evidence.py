@@ -80,7 +80,8 @@ def evidence_weights(points: TouchPoints, xy: list[XY], area_px: list[int], ok_n
     a fingertip at the end of a finger) counts nothing (``attach_low_evidence`` if it rests
     within ``attach_low_mm`` of the surface: a finger of a hand held low), and so does one
     whose hand surrounds it (``enclosed_share_max``: a patch of a resting palm or forearm
-    whose top flickers in and out of the band), and so does one whose attached hand pixels
+    whose top flickers in and out of the band; with ``enclosed_change_max_mm``, only where
+    nothing around it moved in the last second), and so does one whose attached hand pixels
     lie higher than ``step_max_mm`` (a finger rises from the band gradually; mixed pixels at
     the side of a raised hand jump), and so does one with level
     heights behind it (``flat_max_mm``: the top of a held book, the flank of a forearm; a
@@ -123,13 +124,20 @@ def evidence_weights(points: TouchPoints, xy: list[XY], area_px: list[int], ok_n
                                 strict=True)]
     share = points.attach_share
     if share is not None and config.enclosed_share_max < 1.0:
-        # (an unknown share or height, NaN, compares False: no evidence taken away)
+        # (an unknown share, height or change, NaN, compares False: no evidence taken away)
         enc, h_min = config.enclosed_share_max, config.enclosed_height_min_mm
         a_max = config.enclosed_attach_max_mm
         ah = ([math.nan] * n if attach_height_mm is None else attach_height_mm.tolist())
-        w = [0.0 if a > enc and h >= h_min and not at >= a_max and not s else v
-             for v, a, h, at, s in zip(w, share.tolist(), points.height_mm.tolist(), ah, steep,
-                                       strict=True)]
+        c_max = config.enclosed_change_max_mm
+        if c_max > 0.0:
+            ch = ([math.nan] * n if points.recent_change_mm is None
+                  else points.recent_change_mm.tolist())
+            still = [c < c_max for c in ch]
+        else:
+            still = [True] * n
+        w = [0.0 if a > enc and h >= h_min and not at >= a_max and st and not s else v
+             for v, a, h, at, st, s in zip(w, share.tolist(), points.height_mm.tolist(), ah,
+                                           still, steep, strict=True)]
     step = config.step_max_mm
     if attach_height_mm is not None and step > 0:
         # (an unknown height, NaN, compares False: no evidence taken away)

@@ -1,0 +1,106 @@
+"""The recent change around touch points (depthtouch.touch.recent): the compiled kernel against
+its array reference, the frames kept, and what it reads on a finger that arrives and stays."""
+
+import numpy as np
+import pytest
+
+from depthtouch.config import PipelineConfig, TrackingConfig
+from depthtouch.pipeline import Pipeline
+from depthtouch.touch.recent import HALF_PX, RecentDepth, recent_change
+from depthtouch.types import Frame
+from synth import K_640, Finger, make_recording
+
+
+def _reference(depth: np.ndarray, frames: np.ndarray, xy: np.ndarray, half: int) -> np.ndarray:
+    """The array version: the median of the known depths of the clamped window, now and then."""
+    h, w = depth.shape
+    out = np.full(len(xy), np.nan)
+
+    def med(img: np.ndarray, x: float, y: float) -> float:
+        cx, cy = min(max(round(x), 0), w - 1), min(max(round(y), 0), h - 1)
+        win = img[max(cy - half, 0):cy + half + 1, max(cx - half, 0):cx + half + 1]
+        v = win[win > 0].astype(np.float64)
+        return float(np.median(v)) if v.size else np.nan
+
+    for i, (x, y) in enumerate(xy):
+        if np.isnan(x) or np.isnan(y):
+            continue
+        now = med(depth, x, y)
+        diffs = [abs(med(f, x, y) - now) for f in frames]
+        diffs = [d for d in diffs if not np.isnan(d)]
+        if diffs and not np.isnan(now):
+            out[i] = max(diffs)
+    return out
+
+
+def test_the_kernel_equals_its_array_reference():
+    """Random depths with holes, points inside, at the border, outside and unknown."""
+    rng = np.random.default_rng(3)
+    depth = rng.integers(900, 1100, (40, 60)).astype(np.uint16)
+    depth[rng.random(depth.shape) < 0.3] = 0
+    depth[0:6, 50:60] = 0  # a window with no depth at all
+    frames = rng.integers(900, 1100, (4, 40, 60)).astype(np.uint16)
+    frames[rng.random(frames.shape) < 0.3] = 0
+    xy = np.array([[10.2, 20.7], [0.0, 0.0], [59.4, 39.6], [-3.0, 45.0], [55.0, 2.0],
+                   [np.nan, 4.0], [30.5, 10.5]])
+    use = np.array([0, 2, 3])
+    out = np.empty(len(xy))
+    recent_change(depth, frames, use, xy, HALF_PX, out)
+    ref = _reference(depth, frames[use], xy, HALF_PX)
+    np.testing.assert_allclose(out, ref, equal_nan=True)
+    assert np.isnan(out[4]) and np.isnan(out[5]) and np.isfinite(out[[0, 1, 2, 3, 6]]).all()
+
+
+def test_frames_are_kept_one_per_step_within_the_window():
+    """A frame is kept every step_s; the change compares only frames min_age_s to window_s
+    old; time going back starts over; nothing kept yet is unknown."""
+    r = RecentDepth(window_s=1.0, step_s=0.25, min_age_s=0.2)
+    factor = np.full((10, 12), 2.0, np.float32)
+    xy = np.array([[5.0, 5.0]])
+    level = np.full((10, 12), 1000, np.uint16)
+    assert np.isnan(r.change_mm(level, xy, 0.0, 1.0, factor)[0])
+    r.update(level, 0.0)
+    assert np.isnan(r.change_mm(level, xy, 0.1, 1.0, factor)[0])  # kept, but too recent
+    r.update(level - 5, 0.1)  # not kept: less than a step after the last one
+    assert r.change_mm(level - 3, xy, 0.3, 0.5, factor)[0] == pytest.approx(3 * 0.5 * 2.0)
+    for k in range(1, 5):
+        r.update(level - 10 * k, 0.25 * k)
+    # at 1.2 s: frames from 0.25 (990) to 1.0 (960) are 0.2-0.95 s old; 0.0 (1000) is too old
+    assert r.change_mm(level - 40, xy, 1.2, 1.0, factor)[0] == pytest.approx(30 * 2.0)
+    r.update(level, 0.5)  # time went back: a new stream
+    assert np.isnan(r.change_mm(level, xy, 0.6, 1.0, factor)[0])
+    r.update(np.zeros((4, 4), np.uint16), 5.0)  # another size: starts over
+    assert np.isnan(r.change_mm(level, xy, 5.5, 1.0, factor)[0])
+    with pytest.raises(ValueError, match="window"):
+        RecentDepth(window_s=0.1, step_s=0.2)
+
+
+def _points_over(script: list[list[Finger]], config: PipelineConfig) -> list:
+    depth, ts = make_recording(75, script, noise_mm=1.0, seed=5)
+    p = Pipeline(config)
+    out = []
+    for i, (d, t) in enumerate(zip(depth, ts, strict=True)):
+        r = p.process(Frame(d, float(t), i, 0.001, K_640))
+        if i >= 75:
+            out.append(r.points)
+    return out
+
+
+def test_a_finger_that_arrives_changed_its_heights_and_one_held_still_did_not():
+    """The pipeline measures the change where the tracker asks for it: a finger coming down
+    from 40 mm changed the heights around its tip by tens of mm; after it rests for over a
+    second they changed by no more than the noise. Without the question nothing is kept."""
+    x, y = 320.0, 240.0
+    script = [[Finger(x, y, 90, gap_mm=max(0.0, 40.0 - 4.0 * k))] for k in range(15)]
+    script += [[Finger(x, y, 90)]] * 45
+    on = PipelineConfig(tracking=TrackingConfig(enclosed_share_max=0.3,
+                                                enclosed_change_max_mm=5.0))
+    pts = _points_over(script, on)
+    first = next(k for k, p in enumerate(pts) if len(p))
+    assert first <= 12
+    arriving = pts[first].recent_change_mm
+    assert arriving is not None and arriving[0] > 15.0
+    resting = pts[-1].recent_change_mm
+    assert len(pts[-1]) == 1 and resting is not None and resting[0] < 2.0
+    off = _points_over(script, PipelineConfig())
+    assert len(off[-1]) == 1 and off[-1].recent_change_mm is None
