@@ -29,7 +29,7 @@ def _reference(depth: np.ndarray, frames: np.ndarray, xy: np.ndarray, half: int)
         diffs = [abs(med(f, x, y) - now) for f in frames]
         diffs = [d for d in diffs if not np.isnan(d)]
         if diffs and not np.isnan(now):
-            out[i] = max(diffs)
+            out[i] = float(np.median(diffs))
     return out
 
 
@@ -52,8 +52,8 @@ def test_the_kernel_equals_its_array_reference():
 
 
 def test_frames_are_kept_one_per_step_within_the_window():
-    """A frame is kept every step_s; the change compares only frames min_age_s to window_s
-    old; time going back starts over; nothing kept yet is unknown."""
+    """A frame is kept every step_s; the change is the median over the frames min_age_s to
+    window_s old; time going back starts over; nothing kept yet is unknown."""
     r = RecentDepth(window_s=1.0, step_s=0.25, min_age_s=0.2)
     factor = np.full((10, 12), 2.0, np.float32)
     xy = np.array([[5.0, 5.0]])
@@ -65,8 +65,9 @@ def test_frames_are_kept_one_per_step_within_the_window():
     assert r.change_mm(level - 3, xy, 0.3, 0.5, factor)[0] == pytest.approx(3 * 0.5 * 2.0)
     for k in range(1, 5):
         r.update(level - 10 * k, 0.25 * k)
-    # at 1.2 s: frames from 0.25 (990) to 1.0 (960) are 0.2-0.95 s old; 0.0 (1000) is too old
-    assert r.change_mm(level - 40, xy, 1.2, 1.0, factor)[0] == pytest.approx(30 * 2.0)
+    # at 1.21 s: frames from 0.25 (990) to 1.0 (960) are 0.21-0.96 s old, 0.0 (1000) is too
+    # old: changes 30, 20, 10, 0 mm, their median 15 mm
+    assert r.change_mm(level - 40, xy, 1.21, 1.0, factor)[0] == pytest.approx(15 * 2.0)
     r.update(level, 0.5)  # time went back: a new stream
     assert np.isnan(r.change_mm(level, xy, 0.6, 1.0, factor)[0])
     r.update(np.zeros((4, 4), np.uint16), 5.0)  # another size: starts over
@@ -99,8 +100,8 @@ def test_a_finger_that_arrives_changed_its_heights_and_one_held_still_did_not():
     first = next(k for k, p in enumerate(pts) if len(p))
     assert first <= 12
     arriving = pts[first].recent_change_mm
-    assert arriving is not None and arriving[0] > 15.0
+    assert arriving is not None and arriving[0] > 15.0, arriving
     resting = pts[-1].recent_change_mm
-    assert len(pts[-1]) == 1 and resting is not None and resting[0] < 2.0
+    assert len(pts[-1]) == 1 and resting is not None and resting[0] < 2.0, resting
     off = _points_over(script, PipelineConfig())
     assert len(off[-1]) == 1 and off[-1].recent_change_mm is None

@@ -1,8 +1,9 @@
 """Recent change: how much the depth around each touch point changed over the last second.
 
-A touch starts with a finger arriving: the heights around a contact's first frames changed by
-11-20 mm (median) over the second before them. A patch of a resting palm or forearm lies in a
-body that has not moved: 2-5 mm (docs/accuracy.md section 7, session 40). The tracker reads the
+A touch starts with a finger arriving: the heights around a contact's first frames differ
+from those of the last second's frames by 11-12 mm (median over the frames; median of
+contacts on the hard and rest-tof tune halves). A patch of a resting palm or forearm lies in a
+body that has not moved: 2 mm (docs/accuracy.md section 7, sessions 40-41). The tracker reads the
 change (``TouchPoints.recent_change_mm``) together with the attachment's share of the ring
 (``TrackingConfig.enclosed_change_max_mm``): a region its hand surrounds gives no evidence
 when nothing around it moved.
@@ -61,8 +62,8 @@ class RecentDepth:
 
     def change_mm(self, depth: np.ndarray, xy_px: np.ndarray, t_s: float, to_mm: float,
                   factor: np.ndarray) -> np.ndarray:
-        """The largest change of the height around each point between this frame and the
-        frames kept that are ``min_age_s`` to ``window_s`` old (mm, float64 (N,); NaN where
+        """The typical change of the height around each point between this frame and the
+        frames kept that are ``min_age_s`` to ``window_s`` old (the median over those frames) (mm, float64 (N,); NaN where
         none is kept yet or no depth is known; see :func:`recent_change`). ``factor``: the
         surface's height per depth difference (BandBounds.factor)."""
         xy = np.ascontiguousarray(np.asarray(xy_px, np.float64).reshape(-1, 2))
@@ -85,12 +86,19 @@ class RecentDepth:
 @numba.njit(cache=True, nogil=True)
 def recent_change(depth: np.ndarray, frames: np.ndarray, use: np.ndarray, xy: np.ndarray,
                   half: int, out: np.ndarray) -> None:
-    """For each point (``xy``, image px): the largest absolute difference between the median
-    of the known depths (> 0) of the (2 half + 1)^2 pixels around its nearest pixel in
-    ``depth`` and the same median in each of ``frames[use]`` (depth units; the window is
-    clamped to the image). NaN where no median is known now or in none of those frames."""
+    """For each point (``xy``, image px): the median, over ``frames[use]``, of the absolute
+    difference between the median of the known depths (> 0) of the (2 half + 1)^2 pixels
+    around its nearest pixel in ``depth`` and the same median in that frame (depth units; the
+    window is clamped to the image; frames where the window has no depth are left out). NaN
+    where no median is known now or in none of those frames.
+
+    The median over the frames, not the largest change: the other hand passing over a resting
+    one changes its heights for a moment by 50-200 mm; a finger that arrives changed them in
+    most of the last second's frames.
+    """
     h, w = depth.shape
     buf = np.empty((2 * half + 1) ** 2, depth.dtype)
+    diffs = np.empty(use.shape[0], np.float64)
     for i in range(xy.shape[0]):
         out[i] = np.nan
         x, y = xy[i, 0], xy[i, 1]
@@ -103,13 +111,15 @@ def recent_change(depth: np.ndarray, frames: np.ndarray, use: np.ndarray, xy: np
         now = _median_known(depth, y0, y1, x0, x1, buf)
         if now != now:
             continue
-        best = -1.0
+        n = 0
         for k in use:
             then = _median_known(frames[k], y0, y1, x0, x1, buf)
             if then == then:
-                best = max(best, abs(then - now))
-        if best >= 0.0:
-            out[i] = best
+                diffs[n] = abs(then - now)
+                n += 1
+        if n > 0:
+            s = np.sort(diffs[:n])
+            out[i] = s[n // 2] if n % 2 == 1 else 0.5 * (s[n // 2 - 1] + s[n // 2])
 
 
 @numba.njit(cache=True, nogil=True)
