@@ -111,10 +111,10 @@ class Pipeline:
         self._filter: TouchFilter = (make_filter(self.config.filter) if path_filter is None
                                      else path_filter)
         self._tracker = Tracker(self.config.tracking, self.config.touchpoints)
-        # the frames of the last second, kept only where the tracker asks how much the heights
+        # the frames of the last seconds, kept only where the tracker asks how much the heights
         # around a point changed (TrackingConfig.enclosed_change_max_mm)
         tc = self.config.tracking
-        self._recent = (RecentDepth() if tc.enclosed_share_max < 1.0
+        self._recent = (RecentDepth(tc.enclosed_change_window_s) if tc.enclosed_share_max < 1.0
                         and tc.enclosed_change_max_mm > 0.0 else None)
         self._reported: dict[int, tuple[float, float]] = {}  # last position sent per id, px
         self._active: set[int] = set()

@@ -112,7 +112,7 @@ class TouchPoints:
         depth) that are its attachment's hand pixels: a fingertip's hand lies at its back only,
         a patch of a resting hand or forearm is surrounded by its hand; None means unknown.
     recent_change_mm: (N,) how much the height around the point (the median of its 5x5
-        pixels) differs from the same in the frames of the last second (the median over them)
+        pixels) differs from the same in the frames of the last seconds (the median over them)
         (:mod:`depthtouch.touch.recent`): a finger arrives, a resting hand's patch lies in a
         hand that has not moved (NaN when unknown); None means not measured.
     """

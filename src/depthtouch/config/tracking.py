@@ -89,11 +89,16 @@ class TrackingConfig:
         resting hand is that hand's top, just above Tu; a finger rises steeply behind its tip
         (default 1000: any; range [0, 10000]).
     enclosed_change_max_mm: ... and around which the heights changed by less than this over
-        the last second (TouchPoints.recent_change_mm, :mod:`depthtouch.touch.recent`): a
+        the last seconds (TouchPoints.recent_change_mm, :mod:`depthtouch.touch.recent`): a
         touch starts with a finger arriving, a resting hand's patch lies in a hand that has not
         moved; fingers side by side, whose neighbours fill a touching finger's ring as a
         resting hand does, arrive too. An unknown change (the first 0.15 s after the surface
         was learned) takes no evidence away (default 0: no such condition; range [0, 1000]).
+    enclosed_change_window_s: ... the last this many seconds: the change is the median over
+        that window's frames (one kept every 0.15 s) of how much the heights around the point
+        differ from now. A faint fingertip gathers its evidence over half a second while the
+        finger stays still: the window must reach back before it arrived (default 2.0;
+        range [0.3, 10]).
     step_max_mm: a finger rises from the band gradually; a region whose attached hand pixels
         lie higher than this (median, mm above the surface) is mixed or smeared pixels at the
         side of a raised hand, not a fingertip, and gives no evidence (default 80 mm, chosen on
@@ -257,6 +262,7 @@ class TrackingConfig:
     enclosed_height_min_mm: float = 0.0
     enclosed_attach_max_mm: float = 1000.0
     enclosed_change_max_mm: float = 0.0
+    enclosed_change_window_s: float = 2.0
     step_max_mm: float = 80.0
     flat_max_mm: float = 10.0
     up_frames: int = 3
@@ -317,6 +323,7 @@ class TrackingConfig:
         _range("tracking.enclosed_height_min_mm", self.enclosed_height_min_mm, 0.0, 100.0)
         _range("tracking.enclosed_attach_max_mm", self.enclosed_attach_max_mm, 0.0, 10000.0)
         _range("tracking.enclosed_change_max_mm", self.enclosed_change_max_mm, 0.0, 1000.0)
+        _range("tracking.enclosed_change_window_s", self.enclosed_change_window_s, 0.3, 10.0)
         _range("tracking.step_max_mm", self.step_max_mm, 0.0, 10000.0)
         _range("tracking.flat_max_mm", self.flat_max_mm, 0.0, 100.0)
         _range("tracking.merge_mm", self.merge_mm, 0.0, 200.0)

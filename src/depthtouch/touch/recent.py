@@ -1,4 +1,4 @@
-"""Recent change: how much the depth around each touch point changed over the last second.
+"""Recent change: how much the depth around each touch point changed over the last seconds.
 
 A touch starts with a finger arriving: the heights around a contact's first frames differ
 from those of the last second's frames by 11-12 mm (median over the frames; median of
@@ -8,7 +8,7 @@ change (``TouchPoints.recent_change_mm``) together with the attachment's share o
 (``TrackingConfig.enclosed_change_max_mm``): a region its hand surrounds gives no evidence
 when nothing around it moved.
 
-:class:`RecentDepth` keeps a few frames of the last second (one every ``step_s``, in a ring
+:class:`RecentDepth` keeps a few frames of the last seconds (one every ``step_s``, in a ring
 of preallocated frames: a copy every 5th frame at 30 fps); :func:`recent_change` is the pure
 per-point measure, compiled with numba (cached on disk) like the fingertip kernel.
 """
@@ -63,9 +63,10 @@ class RecentDepth:
     def change_mm(self, depth: np.ndarray, xy_px: np.ndarray, t_s: float, to_mm: float,
                   factor: np.ndarray) -> np.ndarray:
         """The typical change of the height around each point between this frame and the
-        frames kept that are ``min_age_s`` to ``window_s`` old (the median over those frames) (mm, float64 (N,); NaN where
-        none is kept yet or no depth is known; see :func:`recent_change`). ``factor``: the
-        surface's height per depth difference (BandBounds.factor)."""
+        frames kept that are ``min_age_s`` to ``window_s`` old: the median over those frames
+        (mm, float64 (N,); NaN where none is kept yet or no depth is known; see
+        :func:`recent_change`). ``factor``: the surface's height per depth difference
+        (BandBounds.factor)."""
         xy = np.ascontiguousarray(np.asarray(xy_px, np.float64).reshape(-1, 2))
         out = np.full(xy.shape[0], np.nan)
         if self._frames is None or xy.shape[0] == 0 or self._frames.shape[1:] != depth.shape:
