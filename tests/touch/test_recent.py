@@ -103,5 +103,5 @@ def test_a_finger_that_arrives_changed_its_heights_and_one_held_still_did_not():
     assert arriving is not None and arriving[0] > 15.0, arriving
     resting = pts[-1].recent_change_mm
     assert len(pts[-1]) == 1 and resting is not None and resting[0] < 2.0, resting
-    off = _points_over(script, PipelineConfig())
+    off = _points_over(script, PipelineConfig(tracking=TrackingConfig(enclosed_change_max_mm=0.0)))
     assert len(off[-1]) == 1 and off[-1].recent_change_mm is None

@@ -546,7 +546,7 @@ def test_a_region_its_hand_surrounds_gives_no_evidence(share: float, height_mm: 
                       np.array([[np.nan, np.nan]]), None, np.array([10]), np.array([attach_mm]),
                       attach_share=np.array([share]))
     cfg = TrackingConfig(down_frames=2, enclosed_share_max=share_max, enclosed_height_min_mm=3.5,
-                         enclosed_attach_max_mm=40.0)
+                         enclosed_attach_max_mm=40.0, enclosed_change_max_mm=0.0)
     states = [s for f in run(Tracker(cfg, scale_mm_per_px=1.0), [tip] * 8) for _, s in f]
     assert ("down" in states) == goes_down
 

@@ -80,10 +80,12 @@ class TrackingConfig:
         than this share of the pixels within 2 px around it (TouchPoints.attach_share) lies in
         its hand, not at a finger's end (a patch of a resting palm, wrist or forearm whose top
         stands near Tu and flickers in and out of the band), and gives no evidence, unless it
-        looks like a steep finger's top (default 1.0: off; range [0, 1]).
+        looks like a steep finger's top. With ``enclosed_change_max_mm`` (below), only where
+        nothing around it moved: alone, every share tried lost fingers side by side (session
+        40). Default 0.25 (session 41; 1.0 turns the test off; range [0, 1]).
     enclosed_height_min_mm: ... and whose tip (TouchPoints.height_mm, the lower quarter of its
         cap) stands at least this high: a touching fingertip reaches the surface, a patch on
-        the top of a resting hand does not (default 0: any height; range [0, 100]).
+        the top of a resting hand does not (default 3.5 mm, session 41; range [0, 100]).
     enclosed_attach_max_mm: ... and whose attachment (the median height of its hand pixels,
         TouchPoints.attach_height_mm) lies lower than this: the hand around a patch of a
         resting hand is that hand's top, just above Tu; a finger rises steeply behind its tip
@@ -93,7 +95,11 @@ class TrackingConfig:
         touch starts with a finger arriving, a resting hand's patch lies in a hand that has not
         moved; fingers side by side, whose neighbours fill a touching finger's ring as a
         resting hand does, arrive too. An unknown change (the first 0.15 s after the surface
-        was learned) takes no evidence away (default 0: no such condition; range [0, 1000]).
+        was learned) takes no evidence away. Default 4 mm (session 41; 0: no such condition,
+        the share alone decides; range [0, 1000]). Chosen on the tune halves: rest-tof's false
+        touches 46 -> 27 with no contact lost there, one lost on drift-hold (a stereo still
+        hold whose faint tip takes 1.5 s to go down); held-out: HELDOUT_SUMMARY
+        (docs/accuracy.md section 7, session 41).
     enclosed_change_window_s: ... the last this many seconds: the change is the median over
         that window's frames (one kept every 0.15 s) of how much the heights around the point
         differ from now. A faint fingertip gathers its evidence over half a second while the
@@ -258,10 +264,10 @@ class TrackingConfig:
     attach_max_mm: float = 30.0
     attach_low_mm: float = 3.0
     attach_low_evidence: float = 0.25
-    enclosed_share_max: float = 1.0
-    enclosed_height_min_mm: float = 0.0
+    enclosed_share_max: float = 0.25
+    enclosed_height_min_mm: float = 3.5
     enclosed_attach_max_mm: float = 1000.0
-    enclosed_change_max_mm: float = 0.0
+    enclosed_change_max_mm: float = 4.0
     enclosed_change_window_s: float = 2.0
     step_max_mm: float = 80.0
     flat_max_mm: float = 10.0

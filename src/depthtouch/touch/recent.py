@@ -29,7 +29,7 @@ class RecentDepth:
     """The frames of the last ``window_s`` seconds, one every ``step_s`` (the owner calls
     :meth:`change_mm` for a frame's points, then :meth:`update` with that frame)."""
 
-    def __init__(self, window_s: float = 1.0, step_s: float = 0.15, min_age_s: float = 0.15
+    def __init__(self, window_s: float = 2.0, step_s: float = 0.15, min_age_s: float = 0.15
                  ) -> None:
         if not (0.0 < step_s <= window_s and 0.0 <= min_age_s < window_s):
             raise ValueError(f"RecentDepth: window {window_s} s, step {step_s} s and minimum age "
