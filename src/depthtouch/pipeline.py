@@ -201,9 +201,9 @@ class Pipeline:
         t1 = time.perf_counter()
         points = find_touch_points(frame.depth, regions, b, self.config.touchpoints)
         if self._recent is not None:
-            if len(points):
-                points = replace(points, recent_change_mm=self._recent.change_mm(
-                    frame.depth, points.xy_px, frame.timestamp_s, b.to_mm, b.factor))
+            change = self._recent_change(frame, points) if len(points) else None
+            if change is not None:
+                points = replace(points, recent_change_mm=change)
             self._recent.update(frame.depth, frame.timestamp_s)
         t2 = time.perf_counter()
         updates = self._tracker.update(points, frame.timestamp_s)
@@ -217,6 +217,22 @@ class Pipeline:
             "total": (t4 - t0) * 1e3,
         }
         return self._result(frame, events, "ok", points, timing)
+
+    def _recent_change(self, frame: Frame, points: TouchPoints) -> np.ndarray | None:
+        """The recent change around the points the enclosure test asks about (its share and
+        tip height), NaN (unknown: no evidence taken away) elsewhere; None when it asks about
+        none (most frames: the per-frame path pays only for the frames kept)."""
+        tc, b = self.config.tracking, self.surface.bounds
+        if self._recent is None or points.attach_share is None:
+            return None
+        ask = np.flatnonzero((points.attach_share > tc.enclosed_share_max)
+                             & (points.height_mm >= tc.enclosed_height_min_mm))
+        if not ask.size:
+            return None
+        out = np.full(len(points), np.nan)
+        out[ask] = self._recent.change_mm(frame.depth, points.xy_px[ask], frame.timestamp_s,
+                                          b.to_mm, b.factor)
+        return out
 
     def _relearn(self, frame: Frame) -> FrameResult:
         log.warning(

@@ -90,11 +90,13 @@ def _points_over(script: list[list[Finger]], config: PipelineConfig) -> list:
 def test_a_finger_that_arrives_changed_its_heights_and_one_held_still_did_not():
     """The pipeline measures the change where the tracker asks for it: a finger coming down
     from 40 mm changed the heights around its tip by tens of mm; after it rests for over a
-    second they changed by no more than the noise. Without the question nothing is kept."""
+    second they changed by no more than the noise. Without the question nothing is kept; the
+    points the enclosure test cannot refuse (its share, its tip height) are not measured."""
     x, y = 320.0, 240.0
     script = [[Finger(x, y, 90, gap_mm=max(0.0, 40.0 - 4.0 * k))] for k in range(15)]
     script += [[Finger(x, y, 90)]] * 45
-    on = PipelineConfig(tracking=TrackingConfig(enclosed_share_max=0.3,
+    # (asked of every point: any share, any tip height)
+    on = PipelineConfig(tracking=TrackingConfig(enclosed_share_max=0.0, enclosed_height_min_mm=0.0,
                                                 enclosed_change_max_mm=5.0))
     pts = _points_over(script, on)
     first = next(k for k, p in enumerate(pts) if len(p))
@@ -104,4 +106,7 @@ def test_a_finger_that_arrives_changed_its_heights_and_one_held_still_did_not():
     resting = pts[-1].recent_change_mm
     assert len(pts[-1]) == 1 and resting is not None and resting[0] < 2.0, resting
     off = _points_over(script, PipelineConfig(tracking=TrackingConfig(enclosed_change_max_mm=0.0)))
+    unasked = _points_over(script, PipelineConfig(tracking=TrackingConfig(
+        enclosed_share_max=0.99, enclosed_change_max_mm=5.0)))
+    assert len(unasked[-1]) == 1 and unasked[-1].recent_change_mm is None
     assert len(off[-1]) == 1 and off[-1].recent_change_mm is None
