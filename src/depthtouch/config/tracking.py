@@ -98,8 +98,9 @@ class TrackingConfig:
         was learned) takes no evidence away. Default 4 mm (session 41; 0: no such condition,
         the share alone decides; range [0, 1000]). Chosen on the tune halves: rest-tof's false
         touches 46 -> 27 with no contact lost there, one lost on drift-hold (a stereo still
-        hold whose faint tip takes 1.5 s to go down); held-out: HELDOUT_SUMMARY
-        (docs/accuracy.md section 7, session 41).
+        hold whose faint tip takes 1.5 s to go down); held-out, no contact lost on eight
+        sets, false touches 52 -> 46 (rest-tof 23 -> 20, hard 8 -> 6; docs/accuracy.md
+        section 7, session 41).
     enclosed_change_window_s: ... the last this many seconds: the change is the median over
         that window's frames (one kept every 0.15 s) of how much the heights around the point
         differ from now. A faint fingertip gathers its evidence over half a second while the
