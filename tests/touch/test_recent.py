@@ -11,8 +11,10 @@ from depthtouch.types import Frame
 from synth import K_640, Finger, make_recording
 
 
-def _reference(depth: np.ndarray, frames: np.ndarray, xy: np.ndarray, half: int) -> np.ndarray:
-    """The array version: the median of the known depths of the clamped window, now and then."""
+def _reference(depth: np.ndarray, frames: np.ndarray, xy: np.ndarray, half: int,
+               factor: np.ndarray, to_mm: float) -> np.ndarray:
+    """The array version: the median of the known depths of the clamped window, now and then,
+    as a height (to_mm times the factor at the point's pixel)."""
     h, w = depth.shape
     out = np.full(len(xy), np.nan)
 
@@ -29,7 +31,8 @@ def _reference(depth: np.ndarray, frames: np.ndarray, xy: np.ndarray, half: int)
         diffs = [abs(med(f, x, y) - now) for f in frames]
         diffs = [d for d in diffs if not np.isnan(d)]
         if diffs and not np.isnan(now):
-            out[i] = float(np.median(diffs))
+            cx, cy = min(max(round(x), 0), w - 1), min(max(round(y), 0), h - 1)
+            out[i] = float(np.median(diffs)) * to_mm * float(factor[cy, cx])
     return out
 
 
@@ -44,9 +47,10 @@ def test_the_kernel_equals_its_array_reference():
     xy = np.array([[10.2, 20.7], [0.0, 0.0], [59.4, 39.6], [-3.0, 45.0], [55.0, 2.0],
                    [np.nan, 4.0], [30.5, 10.5]])
     use = np.array([0, 2, 3])
+    factor = rng.uniform(0.8, 1.2, depth.shape).astype(np.float32)
     out = np.empty(len(xy))
-    recent_change(depth, frames, use, xy, HALF_PX, out)
-    ref = _reference(depth, frames[use], xy, HALF_PX)
+    recent_change(depth, frames, use, xy, HALF_PX, factor, 0.5, out)
+    ref = _reference(depth, frames[use], xy, HALF_PX, factor, 0.5)
     np.testing.assert_allclose(out, ref, equal_nan=True)
     assert np.isnan(out[4]) and np.isnan(out[5]) and np.isfinite(out[[0, 1, 2, 3, 6]]).all()
 

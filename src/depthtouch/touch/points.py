@@ -38,6 +38,7 @@ from __future__ import annotations
 
 import math
 
+import numba
 import numpy as np
 
 from ..config import TouchPointConfig
@@ -112,17 +113,23 @@ def tl_above_floor_mm(xy_px: np.ndarray, bounds: BandBounds) -> np.ndarray:
     pixel's own noise estimate is itself noisy, and a point moving by a pixel must not change
     what is derived from it (the report's forward shift, the evidence of a small region).
     """
-    xy = np.asarray(xy_px, np.float64).reshape(-1, 2)
+    xy = np.ascontiguousarray(np.asarray(xy_px, np.float64).reshape(-1, 2))
     tl_map = bounds.tl_around_mm if bounds.tl_around_mm is not None else bounds.tl_mm
-    h1, w1 = tl_map.shape[0] - 1, tl_map.shape[1] - 1
-    floor = bounds.tl_floor_mm
     out = np.zeros(xy.shape[0])
-    # a handful of points per frame: plain floats cost less than array calls here
-    for i, (x, y) in enumerate(xy.tolist()):
-        if x == x and y == y:  # NaN: no pixel, nothing above the floor
+    _tl_above(xy, tl_map, float(bounds.tl_floor_mm), out)
+    return out
+
+
+@numba.njit(cache=True, nogil=True)
+def _tl_above(xy: np.ndarray, tl_map: np.ndarray, floor: float, out: np.ndarray) -> None:
+    """:func:`tl_above_floor_mm`'s per-point step (``out`` zeros on entry; a NaN point, no
+    pixel, stays 0). Compiled, like the other per-point steps: a handful of points a frame."""
+    h1, w1 = tl_map.shape[0] - 1, tl_map.shape[1] - 1
+    for i in range(xy.shape[0]):
+        x, y = xy[i, 0], xy[i, 1]
+        if x == x and y == y:
             tl = float(tl_map[min(max(round(y), 0), h1), min(max(round(x), 0), w1)])
             out[i] = max(tl - floor, 0.0)
-    return out
 
 
 def tl_offset_px(xy_px: np.ndarray, hand_xy_px: np.ndarray, above_mm: np.ndarray,
@@ -140,25 +147,40 @@ def tl_offset_px(xy_px: np.ndarray, hand_xy_px: np.ndarray, above_mm: np.ndarray
     At the floor the offset is ``const_mm`` (TouchPointConfig.tip_shift_mm); it is 0 for
     points without a hand direction.
     """
-    xy = np.asarray(xy_px, np.float64).reshape(-1, 2)
+    xy = np.ascontiguousarray(np.asarray(xy_px, np.float64).reshape(-1, 2))
     out = np.zeros_like(xy)
     if per_mm == 0.0 and const_mm == 0.0:
         return out
-    k = per_mm / mm_per_px
-    # a handful of points per frame: plain floats cost less than array calls here
-    for i, ((x, y), (hx, hy), above) in enumerate(zip(
-            xy.tolist(), np.asarray(hand_xy_px).reshape(-1, 2).tolist(),
-            np.asarray(above_mm, np.float64).reshape(-1).tolist())):
-        ux, uy = x - hx, y - hy
+    hand = np.ascontiguousarray(np.asarray(hand_xy_px, np.float64).reshape(-1, 2))
+    above = np.ascontiguousarray(np.asarray(above_mm, np.float64).reshape(-1))
+    _tl_offset(xy, hand, above, per_mm / mm_per_px, const_mm / mm_per_px, out)
+    return out
+
+
+@numba.njit(cache=True, nogil=True)
+def _tl_offset(xy: np.ndarray, hand: np.ndarray, above_mm: np.ndarray, per_px: float,
+               const_px: float, out: np.ndarray) -> None:
+    """:func:`tl_offset_px`'s per-point step (``out`` zeros on entry): ``per_px`` px per mm of
+    Tl above its floor plus ``const_px``, along the direction from the hand to the point."""
+    for i in range(xy.shape[0]):
+        ux, uy = xy[i, 0] - hand[i, 0], xy[i, 1] - hand[i, 1]
         n = math.hypot(ux, uy)
         if not n > 1e-6:  # also NaN: no hand direction
             continue
+        above = above_mm[i]
         above = above if above > 0.0 else 0.0  # (NaN, unknown: no Tl shift)
-        if above > 0.0 or const_mm > 0.0:
-            step = (k * above + const_mm / mm_per_px) / n
+        if above > 0.0 or const_px > 0.0:
+            step = (per_px * above + const_px) / n
             out[i, 0] = ux * step
             out[i, 1] = uy * step
-    return out
+
+
+def warm_up() -> None:
+    """Compile (or load from the on-disk cache) this module's per-point kernels (see
+    :func:`tipkernel.warm_up`)."""
+    xy = np.zeros((1, 2))
+    _tl_above(xy, np.ones((2, 2), np.float32), 1.0, np.zeros(1))
+    _tl_offset(xy, np.ones((1, 2)), np.ones(1), 1.0, 1.0, np.zeros((1, 2)))
 
 
 def _core_of(regions: Regions, shape: tuple[int, ...]) -> np.ndarray:

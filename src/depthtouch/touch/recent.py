@@ -75,30 +75,27 @@ class RecentDepth:
         use = np.flatnonzero((age >= self.min_age_s) & (age <= self.window_s))
         if use.size == 0:
             return out
-        recent_change(depth, self._frames, use.astype(np.int64), xy, HALF_PX, out)
-        h, w = depth.shape
-        for i, (x, y) in enumerate(xy.tolist()):  # a handful of points per frame
-            if out[i] == out[i]:
-                out[i] *= to_mm * float(factor[min(max(round(y), 0), h - 1),
-                                               min(max(round(x), 0), w - 1)])
+        recent_change(depth, self._frames, use.astype(np.int64), xy, HALF_PX,
+                      np.ascontiguousarray(factor), float(to_mm), out)
         return out
 
 
 @numba.njit(cache=True, nogil=True)
 def recent_change(depth: np.ndarray, frames: np.ndarray, use: np.ndarray, xy: np.ndarray,
-                  half: int, out: np.ndarray) -> None:
+                  half: int, factor: np.ndarray, to_mm: float, out: np.ndarray) -> None:
     """For each point (``xy``, image px): the median, over ``frames[use]``, of the absolute
     difference between the median of the known depths (> 0) of the (2 half + 1)^2 pixels
-    around its nearest pixel in ``depth`` and the same median in that frame (depth units; the
-    window is clamped to the image; frames where the window has no depth are left out). NaN
-    where no median is known now or in none of those frames.
+    around its nearest pixel in ``depth`` and the same median in that frame, as a height in mm
+    (times ``to_mm`` and the surface's height per depth difference ``factor`` at that pixel;
+    the window is clamped to the image; frames where the window has no depth are left out).
+    NaN where no median is known now or in none of those frames.
 
     The median over the frames, not the largest change: the other hand passing over a resting
     one changes its heights for a moment by 50-200 mm; a finger that arrives changed them in
     most of the last second's frames.
     """
     h, w = depth.shape
-    buf = np.empty((2 * half + 1) ** 2, depth.dtype)
+    buf = np.empty((2 * half + 1) ** 2, np.float64)
     diffs = np.empty(use.shape[0], np.float64)
     for i in range(xy.shape[0]):
         out[i] = np.nan
@@ -116,11 +113,22 @@ def recent_change(depth: np.ndarray, frames: np.ndarray, use: np.ndarray, xy: np
         for k in use:
             then = _median_known(frames[k], y0, y1, x0, x1, buf)
             if then == then:
-                diffs[n] = abs(then - now)
-                n += 1
+                n = _insert(diffs, n, abs(then - now))
         if n > 0:
-            s = np.sort(diffs[:n])
-            out[i] = s[n // 2] if n % 2 == 1 else 0.5 * (s[n // 2 - 1] + s[n // 2])
+            med = diffs[n // 2] if n % 2 == 1 else 0.5 * (diffs[n // 2 - 1] + diffs[n // 2])
+            out[i] = med * (to_mm * float(factor[cy, cx]))
+
+
+@numba.njit(cache=True, nogil=True)
+def _insert(buf: np.ndarray, n: int, v: float) -> int:
+    """Insert ``v`` into the sorted ``buf[:n]`` (insertion sort: 25 values at most, no
+    allocation); returns n + 1."""
+    j = n
+    while j > 0 and buf[j - 1] > v:
+        buf[j] = buf[j - 1]
+        j -= 1
+    buf[j] = v
+    return n + 1
 
 
 @numba.njit(cache=True, nogil=True)
@@ -133,18 +141,17 @@ def _median_known(img: np.ndarray, y0: int, y1: int, x0: int, x1: int, buf: np.n
         for xx in range(x0, x1):
             v = img[yy, xx]
             if v > 0:
-                buf[n] = v
-                n += 1
+                n = _insert(buf, n, float(v))
     if n == 0:
         return np.nan
-    s = np.sort(buf[:n])
     if n % 2 == 1:
-        return float(s[n // 2])
-    return 0.5 * (float(s[n // 2 - 1]) + float(s[n // 2]))
+        return buf[n // 2]
+    return 0.5 * (buf[n // 2 - 1] + buf[n // 2])
 
 
 def warm_up() -> None:
     """Compile (or load from the on-disk cache) this module's kernel (see
     :func:`tipkernel.warm_up`)."""
     z = np.ones((8, 8), np.uint16)
-    recent_change(z, z[None], np.zeros(1, np.int64), np.zeros((1, 2)), HALF_PX, np.empty(1))
+    recent_change(z, z[None], np.zeros(1, np.int64), np.zeros((1, 2)), HALF_PX,
+                  np.ones((8, 8), np.float32), 1.0, np.empty(1))
