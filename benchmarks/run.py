@@ -215,6 +215,11 @@ def _analysis(rows: list) -> list[str]:
         "(quickselect's comparisons depend on the data, and a new stripe each frame defeats the "
         "branch predictor: 0.13-0.16 ms against 0.03 ms on one array timed again and again). "
         "Total 1.25 -> 0.91 ms.",
+        "- Session 42 (640x480 with 5 touches, quick runs on the same VM): the per-point steps "
+        "after the fingertip kernel (the foot of the point on an oblique surface, Tl above its "
+        "floor, the forward shift), Python loops over a handful of points, compiled: touch "
+        "points 0.371 -> 0.336 ms, total 1.004 -> 0.968 ms. Session 41's recent change had "
+        "taken it from 0.959 to 1.004 ms.",
         "- The fingertip kernel reads small windows of six per-pixel surface arrays that the "
         "full-frame passes (median, band) push out of the cache each frame: the same call takes "
         "about half the time on warm data. Memory, not arithmetic, is most of what is left.",

@@ -231,7 +231,7 @@ class Pipeline:
             return None
         out = np.full(len(points), np.nan)
         out[ask] = self._recent.change_mm(frame.depth, points.xy_px[ask], frame.timestamp_s,
-                                          b.to_mm, b.factor)
+                                          b.to_mm, b.factor, tc.enclosed_cover_mm)
         return out
 
     def _relearn(self, frame: Frame) -> FrameResult:

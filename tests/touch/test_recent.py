@@ -12,9 +12,10 @@ from synth import K_640, Finger, make_recording
 
 
 def _reference(depth: np.ndarray, frames: np.ndarray, xy: np.ndarray, half: int,
-               factor: np.ndarray, to_mm: float) -> np.ndarray:
+               factor: np.ndarray, to_mm: float, cover_mm: float = 0.0) -> np.ndarray:
     """The array version: the median of the known depths of the clamped window, now and then,
-    as a height (to_mm times the factor at the point's pixel)."""
+    as a height (to_mm times the factor at the point's pixel), without the frames where the
+    heights lay more than cover_mm above now's (0 when all known frames are such)."""
     h, w = depth.shape
     out = np.full(len(xy), np.nan)
 
@@ -28,11 +29,17 @@ def _reference(depth: np.ndarray, frames: np.ndarray, xy: np.ndarray, half: int,
         if np.isnan(x) or np.isnan(y):
             continue
         now = med(depth, x, y)
-        diffs = [abs(med(f, x, y) - now) for f in frames]
-        diffs = [d for d in diffs if not np.isnan(d)]
-        if diffs and not np.isnan(now):
-            cx, cy = min(max(round(x), 0), w - 1), min(max(round(y), 0), h - 1)
-            out[i] = float(np.median(diffs)) * to_mm * float(factor[cy, cx])
+        cx, cy = min(max(round(x), 0), w - 1), min(max(round(y), 0), h - 1)
+        scale = to_mm * float(factor[cy, cx])
+        then = np.array([med(f, x, y) for f in frames])
+        then = then[~np.isnan(then)]
+        if np.isnan(now) or then.size == 0:
+            continue
+        if cover_mm > 0:
+            open_ = then[(now - then) * scale <= cover_mm]
+            out[i] = float(np.median(np.abs(open_ - now))) * scale if open_.size else 0.0
+        else:
+            out[i] = float(np.median(np.abs(then - now))) * scale
     return out
 
 
@@ -49,10 +56,23 @@ def test_the_kernel_equals_its_array_reference():
     use = np.array([0, 2, 3])
     factor = rng.uniform(0.8, 1.2, depth.shape).astype(np.float32)
     out = np.empty(len(xy))
-    recent_change(depth, frames, use, xy, HALF_PX, factor, 0.5, out)
+    recent_change(depth, frames, use, xy, HALF_PX, factor, 0.5, 0.0, out)
     ref = _reference(depth, frames[use], xy, HALF_PX, factor, 0.5)
     np.testing.assert_allclose(out, ref, equal_nan=True)
     assert np.isnan(out[4]) and np.isnan(out[5]) and np.isfinite(out[[0, 1, 2, 3, 6]]).all()
+    # with covers: the frames whose heights lay more than cover_mm above now's are left out
+    covered = frames.copy()
+    covered[2, 15:26, 5:16] = 700  # point 0 under a cover in one frame used
+    covered[:, 8:14, 28:34] = 600  # point 6 under a cover in every frame: 0
+    for cover in (0.0, 30.0):
+        out = np.empty(len(xy))
+        recent_change(depth, covered, use, xy, HALF_PX, factor, 0.5, cover, out)
+        ref = _reference(depth, covered[use], xy, HALF_PX, factor, 0.5, cover)
+        np.testing.assert_allclose(out, ref, equal_nan=True)
+        assert (out[6] == 0.0) == (cover > 0)
+        if cover == 0.0:
+            uncovered = out[0]
+    assert out[0] != uncovered  # the covered frame was left out
 
 
 def test_frames_are_kept_one_per_step_within_the_window():

@@ -106,6 +106,10 @@ class TrackingConfig:
         differ from now. A faint fingertip gathers its evidence over half a second while the
         finger stays still: the window must reach back before it arrived (default 2.0;
         range [0.3, 10]).
+    enclosed_cover_mm: ... leaving out the frames in which the heights around the point lay
+        more than this above today's (a cover: the other hand hovering over a resting one); a
+        point covered in every frame of the window, uncovered now, counts as unchanged: it did
+        not arrive, its cover left (0: every frame counts; range [0, 1000]).
     step_max_mm: a finger rises from the band gradually; a region whose attached hand pixels
         lie higher than this (median, mm above the surface) is mixed or smeared pixels at the
         side of a raised hand, not a fingertip, and gives no evidence (default 80 mm, chosen on
@@ -270,6 +274,7 @@ class TrackingConfig:
     enclosed_attach_max_mm: float = 1000.0
     enclosed_change_max_mm: float = 4.0
     enclosed_change_window_s: float = 2.0
+    enclosed_cover_mm: float = 0.0
     step_max_mm: float = 80.0
     flat_max_mm: float = 10.0
     up_frames: int = 3
@@ -331,6 +336,7 @@ class TrackingConfig:
         _range("tracking.enclosed_attach_max_mm", self.enclosed_attach_max_mm, 0.0, 10000.0)
         _range("tracking.enclosed_change_max_mm", self.enclosed_change_max_mm, 0.0, 1000.0)
         _range("tracking.enclosed_change_window_s", self.enclosed_change_window_s, 0.3, 10.0)
+        _range("tracking.enclosed_cover_mm", self.enclosed_cover_mm, 0.0, 1000.0)
         _range("tracking.step_max_mm", self.step_max_mm, 0.0, 10000.0)
         _range("tracking.flat_max_mm", self.flat_max_mm, 0.0, 100.0)
         _range("tracking.merge_mm", self.merge_mm, 0.0, 200.0)

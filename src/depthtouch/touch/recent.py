@@ -61,12 +61,13 @@ class RecentDepth:
         self._last_t = t_s
 
     def change_mm(self, depth: np.ndarray, xy_px: np.ndarray, t_s: float, to_mm: float,
-                  factor: np.ndarray) -> np.ndarray:
+                  factor: np.ndarray, cover_mm: float = 0.0) -> np.ndarray:
         """The typical change of the height around each point between this frame and the
         frames kept that are ``min_age_s`` to ``window_s`` old: the median over those frames
         (mm, float64 (N,); NaN where none is kept yet or no depth is known; see
         :func:`recent_change`). ``factor``: the surface's height per depth difference
-        (BandBounds.factor)."""
+        (BandBounds.factor); ``cover_mm`` > 0: frames in which the point lay under something
+        that much higher are left out (see :func:`recent_change`)."""
         xy = np.ascontiguousarray(np.asarray(xy_px, np.float64).reshape(-1, 2))
         out = np.full(xy.shape[0], np.nan)
         if self._frames is None or xy.shape[0] == 0 or self._frames.shape[1:] != depth.shape:
@@ -76,19 +77,26 @@ class RecentDepth:
         if use.size == 0:
             return out
         recent_change(depth, self._frames, use.astype(np.int64), xy, HALF_PX,
-                      np.ascontiguousarray(factor), float(to_mm), out)
+                      np.ascontiguousarray(factor), float(to_mm), float(cover_mm), out)
         return out
 
 
 @numba.njit(cache=True, nogil=True)
 def recent_change(depth: np.ndarray, frames: np.ndarray, use: np.ndarray, xy: np.ndarray,
-                  half: int, factor: np.ndarray, to_mm: float, out: np.ndarray) -> None:
+                  half: int, factor: np.ndarray, to_mm: float, cover_mm: float,
+                  out: np.ndarray) -> None:
     """For each point (``xy``, image px): the median, over ``frames[use]``, of the absolute
     difference between the median of the known depths (> 0) of the (2 half + 1)^2 pixels
     around its nearest pixel in ``depth`` and the same median in that frame, as a height in mm
     (times ``to_mm`` and the surface's height per depth difference ``factor`` at that pixel;
     the window is clamped to the image; frames where the window has no depth are left out).
     NaN where no median is known now or in none of those frames.
+
+    ``cover_mm`` > 0: a frame in which the heights there lay more than ``cover_mm`` above
+    today's (the other hand over a resting one) says nothing about what lies beneath and is
+    left out; a point under such a cover in every frame with a median (now uncovered: the
+    hand over it left) counts as unchanged, 0. A finger that arrives comes from its hover
+    height above the contact, not from a cover over it for the whole window.
 
     The median over the frames, not the largest change: the other hand passing over a resting
     one changes its heights for a moment by 50-200 mm; a finger that arrives changed them in
@@ -109,14 +117,22 @@ def recent_change(depth: np.ndarray, frames: np.ndarray, use: np.ndarray, xy: np
         now = _median_known(depth, y0, y1, x0, x1, buf)
         if now != now:
             continue
+        scale = to_mm * float(factor[cy, cx])
         n = 0
+        covered = 0
         for k in use:
             then = _median_known(frames[k], y0, y1, x0, x1, buf)
             if then == then:
+                # (depth units; a cover lies nearer the camera: a smaller depth)
+                if cover_mm > 0.0 and (now - then) * scale > cover_mm:
+                    covered += 1
+                    continue
                 n = _insert(diffs, n, abs(then - now))
         if n > 0:
             med = diffs[n // 2] if n % 2 == 1 else 0.5 * (diffs[n // 2 - 1] + diffs[n // 2])
-            out[i] = med * (to_mm * float(factor[cy, cx]))
+            out[i] = med * scale
+        elif covered > 0:
+            out[i] = 0.0
 
 
 @numba.njit(cache=True, nogil=True)
@@ -154,4 +170,4 @@ def warm_up() -> None:
     :func:`tipkernel.warm_up`)."""
     z = np.ones((8, 8), np.uint16)
     recent_change(z, z[None], np.zeros(1, np.int64), np.zeros((1, 2)), HALF_PX,
-                  np.ones((8, 8), np.float32), 1.0, np.empty(1))
+                  np.ones((8, 8), np.float32), 1.0, 0.0, np.empty(1))
