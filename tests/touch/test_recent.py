@@ -134,3 +134,24 @@ def test_a_finger_that_arrives_changed_its_heights_and_one_held_still_did_not():
         enclosed_share_max=0.99, enclosed_change_max_mm=5.0)))
     assert len(unasked[-1]) == 1 and unasked[-1].recent_change_mm is None
     assert len(off[-1]) == 1 and off[-1].recent_change_mm is None
+
+
+def test_a_point_uncovered_by_a_hand_that_hovered_over_it_did_not_arrive():
+    """A finger lying still while another hand hovers 100 mm over it for 2.7 s, then leaves:
+    against the frames of the last 2 s its heights changed by the hand's height, unless the
+    covered frames are left out (enclosed_cover_mm): then it counts as unchanged."""
+    x, y = 320.0, 240.0
+    still = Finger(x, y, 90)
+    cover = Finger(x, y + 4, 270, gap_mm=100.0, arm=True)
+    script = [[still, cover]] * 80 + [[still]] * 10
+
+    def after(cover_mm: float) -> float:
+        pts = _points_over(script, PipelineConfig(tracking=TrackingConfig(
+            enclosed_share_max=0.0, enclosed_height_min_mm=0.0, enclosed_change_max_mm=5.0,
+            enclosed_cover_mm=cover_mm)))
+        p = pts[83]
+        assert len(p) == 1 and p.recent_change_mm is not None
+        return float(p.recent_change_mm[0])
+
+    assert after(0.0) > 50.0
+    assert after(30.0) == 0.0
