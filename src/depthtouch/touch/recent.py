@@ -6,7 +6,9 @@ contacts on the hard and rest-tof tune halves). A patch of a resting palm or for
 body that has not moved: 2 mm (docs/accuracy.md section 7, sessions 40-41). The tracker reads the
 change (``TouchPoints.recent_change_mm``) together with the attachment's share of the ring
 (``TrackingConfig.enclosed_change_max_mm``): a region its hand surrounds gives no evidence
-when nothing around it moved.
+when nothing around it moved. Frames in which something far higher lay over the point (the other
+hand hovering over a resting one, ``enclosed_cover_mm``) are left out: a patch uncovered when
+that hand leaves did not arrive (session 42).
 
 :class:`RecentDepth` keeps a few frames of the last seconds (one every ``step_s``, in a ring
 of preallocated frames: a copy every 5th frame at 30 fps); :func:`recent_change` is the pure
