@@ -127,3 +127,5 @@ def test_the_compiled_tl_steps_equal_the_python_loops():
         np.testing.assert_array_equal(got, want)
     assert tl_offset_px(np.zeros((0, 2)), np.zeros((0, 2)), np.zeros(0), 1.0, 0.4, 1.5).shape \
         == (0, 2)
+    with pytest.raises(ValueError, match="one of each per point"):
+        tl_offset_px(xy, hand[:3], above_in, b.mm_per_px, 0.4, 1.5)

@@ -153,6 +153,9 @@ def tl_offset_px(xy_px: np.ndarray, hand_xy_px: np.ndarray, above_mm: np.ndarray
         return out
     hand = np.ascontiguousarray(np.asarray(hand_xy_px, np.float64).reshape(-1, 2))
     above = np.ascontiguousarray(np.asarray(above_mm, np.float64).reshape(-1))
+    if hand.shape[0] != xy.shape[0] or above.shape[0] != xy.shape[0]:
+        raise ValueError(f"tl_offset_px: {xy.shape[0]} points, {hand.shape[0]} hand points and "
+                         f"{above.shape[0]} heights above the floor; give one of each per point")
     _tl_offset(xy, hand, above, per_mm / mm_per_px, const_mm / mm_per_px, out)
     return out
 
