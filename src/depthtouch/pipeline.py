@@ -29,6 +29,7 @@ from .surface.surface import Surface
 from .touch.points import find_touch_points
 from .touch.recent import RecentDepth
 from .touch.regions import band_regions
+from .tracking.evidence import enclosure_asks
 from .tracking.filters import TouchFilter, make_filter
 from .tracking.tracker import Tracker, TrackUpdate
 from .types import Frame, FrameResult, FrameStatus, TouchEvent, TouchPoints
@@ -223,12 +224,12 @@ class Pipeline:
         tip height), NaN (unknown: no evidence taken away) elsewhere; None when it asks about
         none (most frames: the per-frame path pays only for the frames kept)."""
         tc, b = self.config.tracking, self.surface.bounds
-        if self._recent is None or points.attach_share is None:
+        if self._recent is None:
             return None
-        ask = np.flatnonzero((points.attach_share > tc.enclosed_share_max)
-                             & (points.height_mm >= tc.enclosed_height_min_mm))
-        if not ask.size:
+        asks = enclosure_asks(points, tc)
+        if asks is None or not asks.any():
             return None
+        ask = np.flatnonzero(asks)
         out = np.full(len(points), np.nan)
         out[ask] = self._recent.change_mm(frame.depth, points.xy_px[ask], frame.timestamp_s,
                                           b.to_mm, b.factor, tc.enclosed_cover_mm)

@@ -1,5 +1,6 @@
 """The compiled per-point steps (parallax.foot_px, points.tl_above_floor_mm,
-points.tl_offset_px) against the plain Python loops they replaced, their test oracle."""
+points.tl_offset_px) against their test oracles: the foot as array operations, the Tl steps as
+the plain Python loops they replaced."""
 
 import math
 
@@ -14,33 +15,29 @@ from depthtouch.touch.points import tl_above_floor_mm, tl_offset_px
 
 
 def foot_reference(xy_px: np.ndarray, bounds: BandBounds, height_mm: float) -> np.ndarray:
-    """foot_px as a Python loop over the points (its version before session 42)."""
+    """foot_px as array operations over all points at once (the same arithmetic, in the same
+    order, as the compiled per-point step; an independent form of it)."""
     xy = np.asarray(xy_px, np.float64).reshape(-1, 2)
     out = xy.copy()
     K, normals = bounds.K, bounds.normals
-    if height_mm == 0.0 or K is None or normals is None:
+    if height_mm == 0.0 or K is None or normals is None or not len(xy):
         return out
-    (fx, _, cx), (_, fy, cy), _ = K.tolist()
-    depth, valid = bounds.surface_mm, bounds.valid
-    w1, h1 = depth.shape[1] - 1, depth.shape[0] - 1
-    for i, (x, y) in enumerate(xy.tolist()):
-        if math.isnan(x) or math.isnan(y):
-            continue
-        ix, iy = min(max(round(x), 0), w1), min(max(round(y), 0), h1)
-        z = float(depth[iy, ix])
-        if not valid[iy, ix] or z <= 0.0:
-            continue
-        nx, ny, nz = normals[iy, ix].tolist()
-        rx, ry = (ix - cx) / fx, (iy - cy) / fy
-        toward = -(nx * rx + ny * ry + nz)
-        if toward <= 1e-3:
-            continue
+    fx, fy, cx, cy = K[0, 0], K[1, 1], K[0, 2], K[1, 2]
+    known = ~np.isnan(xy).any(axis=1)
+    h, w = bounds.surface_mm.shape
+    ix = np.clip(np.rint(np.where(known, xy[:, 0], 0.0)), 0, w - 1).astype(np.int64)
+    iy = np.clip(np.rint(np.where(known, xy[:, 1], 0.0)), 0, h - 1).astype(np.int64)
+    z = bounds.surface_mm[iy, ix].astype(np.float64)
+    n = normals[iy, ix].astype(np.float64)
+    rx, ry = (ix - cx) / fx, (iy - cy) / fy
+    with np.errstate(divide="ignore", invalid="ignore"):
+        toward = -(n[:, 0] * rx + n[:, 1] * ry + n[:, 2])
         t = z - height_mm / toward
-        fx3, fy3, fz3 = rx * t - height_mm * nx, ry * t - height_mm * ny, t - height_mm * nz
-        if fz3 <= 0.0:
-            continue
-        out[i, 0] = x + fx * fx3 / fz3 + cx - ix
-        out[i, 1] = y + fy * fy3 / fz3 + cy - iy
+        fx3, fy3, fz3 = rx * t - height_mm * n[:, 0], ry * t - height_mm * n[:, 1], \
+            t - height_mm * n[:, 2]
+        keep = known & bounds.valid[iy, ix] & (z > 0.0) & (toward > 1e-3) & (fz3 > 0.0)
+        out[keep, 0] = (xy[:, 0] + fx * fx3 / fz3 + cx - ix)[keep]
+        out[keep, 1] = (xy[:, 1] + fy * fy3 / fz3 + cy - iy)[keep]
     return out
 
 

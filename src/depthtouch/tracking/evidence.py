@@ -10,6 +10,8 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
+
 from ..config import TrackingConfig
 from ..types import TouchPoints
 
@@ -63,6 +65,18 @@ def steep_tips(points: TouchPoints, area_px: list[int], scale: float | None,
                    and cfg.steep_step_min_mm < st <= cfg.steep_step_max_mm
                    and math.hypot(x - hx, y - hy) < near)
     return out
+
+
+def enclosure_asks(points: TouchPoints, config: TrackingConfig) -> np.ndarray | None:
+    """The points the enclosure test may refuse for their share and tip height (bool (N,);
+    ``enclosed_share_max``, ``enclosed_height_min_mm``; NaN compares False); None when the
+    test is off or no share is known. The pipeline measures the recent change only for these
+    (:meth:`depthtouch.pipeline.Pipeline.process`)."""
+    share = points.attach_share
+    if share is None or config.enclosed_share_max >= 1.0:
+        return None
+    return ((share > config.enclosed_share_max)
+            & (points.height_mm >= config.enclosed_height_min_mm))
 
 
 def evidence_weights(points: TouchPoints, xy: list[XY], area_px: list[int], ok_new: list[bool],
@@ -122,10 +136,9 @@ def evidence_weights(points: TouchPoints, xy: list[XY], area_px: list[int], ok_n
         w = [(min(v, low_w) if h <= low else 0.0) if a > long_px else v
              for v, a, h in zip(w, attach_px.tolist(), points.height_mm.tolist(),
                                 strict=True)]
-    share = points.attach_share
-    if share is not None and config.enclosed_share_max < 1.0:
+    asks = enclosure_asks(points, config)
+    if asks is not None:
         # (an unknown share, height or change, NaN, compares False: no evidence taken away)
-        enc, h_min = config.enclosed_share_max, config.enclosed_height_min_mm
         a_max = config.enclosed_attach_max_mm
         ah = ([math.nan] * n if attach_height_mm is None else attach_height_mm.tolist())
         c_max = config.enclosed_change_max_mm
@@ -135,9 +148,8 @@ def evidence_weights(points: TouchPoints, xy: list[XY], area_px: list[int], ok_n
             still = [c < c_max for c in ch]
         else:
             still = [True] * n
-        w = [0.0 if a > enc and h >= h_min and not at >= a_max and st and not s else v
-             for v, a, h, at, st, s in zip(w, share.tolist(), points.height_mm.tolist(), ah,
-                                           still, steep, strict=True)]
+        w = [0.0 if q and not at >= a_max and st and not s else v
+             for v, q, at, st, s in zip(w, asks.tolist(), ah, still, steep, strict=True)]
     step = config.step_max_mm
     if attach_height_mm is not None and step > 0:
         # (an unknown height, NaN, compares False: no evidence taken away)
