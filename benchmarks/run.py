@@ -219,8 +219,8 @@ def _analysis(rows: list) -> list[str]:
         "after the fingertip kernel (the foot of the point on an oblique surface, Tl above its "
         "floor, the forward shift), Python loops over a handful of points, compiled: touch "
         "points 0.371 -> 0.336 ms, total 1.004 -> 0.968 ms. Session 41's recent change had "
-        "taken it from 0.959 to 1.004 ms; `make bench` with session 42's defaults read 0.985 "
-        "ms: under the 1.0 ms target, by little.",
+        "taken it from 0.959 to 1.004 ms; `make bench` with session 42's defaults read 0.985 and "
+        "0.987 ms (two runs): under the 1.0 ms target, by little.",
         "- The fingertip kernel reads small windows of six per-pixel surface arrays that the "
         "full-frame passes (median, band) push out of the cache each frame: the same call takes "
         "about half the time on warm data. Memory, not arithmetic, is most of what is left.",
