@@ -484,3 +484,16 @@ def test_rest_tof_check_set_rests_forearms_before_every_camera_kind() -> None:
     skin = {placement(c) for c in load_suite("skin-tof").cases if c.group == "forearm-rest-skin"}
     assert {placement(c) for c in cases if c.group == "rest-at-skin"} == skin
     _every_group_on_both_halves(cases)
+
+
+def test_long_hold_check_set_holds_one_finger_ten_seconds_before_every_camera_kind() -> None:
+    """long-hold: the default suite's `hold` scene (one finger held 10 s, longer than the
+    enclosure test's window and the doubt after it) at the hard profiles, at placements and
+    seeds no other suite uses, both hands, every group on both halves."""
+    cases, _ = _own_check_set("long-hold", 44)
+    assert {c.scene for c in cases} == {"hold"}
+    assert {c.camera for c in cases} == {"kinect-v2-hard", "realsense-d435-hard", "kinect-v1-hard"}
+    for group in {c.group for c in cases}:
+        assert {c.hand for c in cases if c.group == group} == {"capsule", "anatomic"}
+    assert {c.pitch_deg for c in cases if c.group == "hold-steep"} == {55.0}
+    _every_group_on_both_halves(cases)

@@ -570,6 +570,27 @@ def test_a_surrounded_region_gives_no_evidence_only_where_nothing_moved(
     assert ("down" in states) == goes_down
 
 
+@pytest.mark.parametrize(("pending_only", "ends"), [(False, True), (True, False)])
+def test_a_held_finger_that_comes_to_lie_still_in_its_hand(pending_only: bool, ends: bool) -> None:
+    """A finger arrives (its surroundings changed 18 mm) and goes down; it is held, and after
+    the window its surroundings read unchanged while its ring is filled: the enclosure test
+    refuses it. By default the contact is doubted and goes up after doubt_frames; with
+    enclosed_pending_only the test refuses a touch's start only, and the held finger stays
+    down. A patch that is still from the start goes down in neither."""
+    def tip(change_mm: float) -> TouchPoints:
+        return TouchPoints(np.array([[100.0, 100.0]]), np.array([5.0]), np.array([300]),
+                           np.array([[np.nan, np.nan]]), None, np.array([10]), np.array([30.0]),
+                           attach_share=np.array([0.5]), recent_change_mm=np.array([change_mm]))
+    cfg = TrackingConfig(down_frames=2, enclosed_share_max=0.3, enclosed_change_max_mm=5.0,
+                         doubt_frames=4, enclosed_pending_only=pending_only)
+    frames = [tip(18.0)] * 3 + [tip(1.0)] * 10
+    states = [s for f in run(Tracker(cfg, scale_mm_per_px=1.0), frames) for _, s in f]
+    assert states.count("down") == 1
+    assert ("up" in states) == ends
+    still = [s for f in run(Tracker(cfg, scale_mm_per_px=1.0), [tip(1.0)] * 13) for _, s in f]
+    assert "down" not in still
+
+
 @pytest.mark.parametrize(("step_mm", "goes_down"), [(35.0, True), (150.0, False), (np.nan, True)])
 def test_a_region_next_to_a_high_step_gives_no_evidence(step_mm: float, goes_down: bool) -> None:
     """Mixed pixels at the side of a hand 150 mm up are not a fingertip; a finger rising from

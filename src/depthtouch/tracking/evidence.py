@@ -82,7 +82,20 @@ def enclosure_asks(points: TouchPoints, config: TrackingConfig) -> np.ndarray | 
 def evidence_weights(points: TouchPoints, xy: list[XY], area_px: list[int], ok_new: list[bool],
                      steep: list[bool], scale: float | None,
                      config: TrackingConfig) -> list[float]:
-    """How much one frame of each point counts toward ``down`` (see TrackingConfig).
+    """How much one frame of each point counts toward ``down`` (see :func:`evidence`): the
+    weights with the enclosure test's refusals applied."""
+    w, refused = evidence(points, xy, area_px, ok_new, steep, scale, config)
+    return w if refused is None else [0.0 if r else v for v, r in zip(w, refused, strict=True)]
+
+
+def evidence(points: TouchPoints, xy: list[XY], area_px: list[int], ok_new: list[bool],
+             steep: list[bool], scale: float | None,
+             config: TrackingConfig) -> tuple[list[float], list[bool] | None]:
+    """How much one frame of each point counts toward ``down`` (see TrackingConfig), before
+    the enclosure test, and the points the enclosure test refuses (None when it is off).
+    The enclosure test is a test of a touch's start (a touch starts with a finger arriving);
+    the tracker applies it to pending contacts, and to contacts that are down only unless
+    ``enclosed_pending_only``.
 
     A region of a fingertip's size (at least ``tip_area_min_mm2`` and ``tip_area_min_px``,
     at most ``tip_area_max_mm2`` or ``tip_area_max_px``) counts a whole frame; a smaller
@@ -107,7 +120,7 @@ def evidence_weights(points: TouchPoints, xy: list[XY], area_px: list[int], ok_n
     """
     n = len(area_px)
     if scale is None:
-        return [1.0] * n
+        return [1.0] * n, None
     attach_px, attach_height_mm = points.attach_px, points.attach_height_mm
     back_spread_mm = points.back_spread_mm
     weak, steep_w = config.weak_evidence, config.steep_evidence
@@ -137,6 +150,7 @@ def evidence_weights(points: TouchPoints, xy: list[XY], area_px: list[int], ok_n
              for v, a, h in zip(w, attach_px.tolist(), points.height_mm.tolist(),
                                 strict=True)]
     asks = enclosure_asks(points, config)
+    refused: list[bool] | None = None
     if asks is not None:
         # (an unknown share, height or change, NaN, compares False: no evidence taken away)
         a_max = config.enclosed_attach_max_mm
@@ -148,8 +162,8 @@ def evidence_weights(points: TouchPoints, xy: list[XY], area_px: list[int], ok_n
             still = [c < c_max for c in ch]
         else:
             still = [True] * n
-        w = [0.0 if q and not at >= a_max and st and not s else v
-             for v, q, at, st, s in zip(w, asks.tolist(), ah, still, steep, strict=True)]
+        refused = [q and not at >= a_max and st and not s
+                   for q, at, st, s in zip(asks.tolist(), ah, still, steep, strict=True)]
     step = config.step_max_mm
     if attach_height_mm is not None and step > 0:
         # (an unknown height, NaN, compares False: no evidence taken away)
@@ -165,4 +179,4 @@ def evidence_weights(points: TouchPoints, xy: list[XY], area_px: list[int], ok_n
         for j in behind(xy, points.hand_xy_px.tolist(), tips, scale,
                          lat + config.behind_lat_px * scale, config.behind_min_mm):
             w[j] = 0.0
-    return w
+    return w, refused

@@ -23,7 +23,9 @@ jump onto a point that an established pending contact lies much nearer to (``yie
 when its own tip drops out for a frame, the nearest point is often a hovering finger or hand
 beside it; it counts as missing instead, and nobody takes that point in that frame.
 A contact whose point has given no evidence of a touch for ``doubt_frames`` frames in a row
-goes ``up`` (it came down on a forearm's edge or a held object, which stays in the band).
+goes ``up`` (it came down on a forearm's edge or a held object, which stays in the band);
+with ``enclosed_pending_only`` (the default) the enclosure test's refusals do not count there:
+that test judges a touch's start, and a finger held still is as still as a resting hand.
 With ``pending_step_max_mm`` set (off by default), a pending contact whose point arrives
 sliding under a raised hand gains no evidence in that frame (a time-of-flight camera's mixed
 depths along a hand sweeping past). Ids are never reused within a run. With ``reference_fps``
@@ -43,7 +45,7 @@ import numpy as np
 from ..config import TouchPointConfig, TrackingConfig
 from ..types import TouchPoints, TouchState
 from .assign import assign, gated_cost, nearest_index
-from .evidence import XY, evidence_weights, steep_tips
+from .evidence import XY, evidence, steep_tips
 from .framerate import FrameRate
 from .lift import CoreHistory, held_grace
 
@@ -243,11 +245,20 @@ class Tracker:
         ath: list[float] = (
             [] if slide_mm <= 0 else [math.inf] * n_p if points.attach_height_mm is None
             else [math.inf if math.isnan(v) else v for v in points.attach_height_mm.tolist()])
-        weight = evidence_weights(points, xy, area, ok_new, steep, self.scale_mm_per_px, cfg)
+        weight_held, refused = evidence(points, xy, area, ok_new, steep, self.scale_mm_per_px,
+                                        cfg)
+        # the enclosure test refuses a touch's start; a contact that is down keeps the weights
+        # without it when enclosed_pending_only (its finger arrived; a held finger is still)
+        weight = (weight_held if refused is None
+                  else [0.0 if r else v for v, r in zip(weight_held, refused, strict=True)])
+        if refused is None or not cfg.enclosed_pending_only:
+            weight_held = weight
         # in a stream faster than reference_fps, a contact's first frame counts as one
         # reference frame and each further frame as its length: its evidence is how long it
         # has been seen (exactly the weights at the reference rate and slower)
         grow = weight if frame == 1.0 else [v * frame for v in weight]
+        grow_held = (grow if weight_held is weight else weight_held if frame == 1.0
+                     else [v * frame for v in weight_held])
         for i, t in enumerate(tracks):
             j = matched_t.get(i)
             if i in shift:
@@ -270,7 +281,7 @@ class Tracker:
                 keep.append(t)
                 continue
             if j is not None:
-                w_j = grow[j]
+                w_j = grow_held[j] if t.active else grow[j]
                 rise = t.core.update(core[j]) if t.core is not None else math.nan
                 if rise > lift_mm:  # (NaN compares False)
                     if t.active:
