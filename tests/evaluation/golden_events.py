@@ -28,7 +28,7 @@ SETTINGS = {"tracking": {"weak_evidence": 1.0, "attach_max_mm": 0.0, "step_max_m
                          "flat_max_mm": 0.0, "behind_lat_mm": 0.0, "pending_gap_frames": 0,
                          "pending_low_mm": 0.0, "steep_evidence": 0.0, "lift_core_mm": 0.0,
                          "yield_ratio": 0.0, "report_dir_weight": 1.0, "doubt_frames": 0,
-                         "enclosed_share_max": 1.0},
+                         "enclosed_share_max": 1.0, "up_held_frames": 0},
             "touchpoints": {"tip_tl_shift": 0.0, "tip_shift_mm": 0.0, "tip_beside_px": 1000.0},
             "regions": {"open_tip_px": 4.0, "block_tip_px": 4.0, "open_band_px": 0.0},
             "filter": {"name": "adaptive"}, "adapt": {"drift_gain": 0.0, "edge_outside": False}}

@@ -141,14 +141,16 @@ class TrackingConfig:
         Where the tip sits at the band's edge (stereo beyond 1 m), a held finger's region comes
         and goes, and each gap of ``up_frames`` ended the touch: a long press broke into
         several. A contact down whose point has already come back after missing frames
-        ``held_gaps`` times (default 2; a clean touch keeps the plain grace, and its lift is not
+        ``held_gaps`` times (default 3; a clean touch keeps the plain grace, and its lift is not
         delayed), whose smoothed velocity is under ``held_step_mm`` per frame (default 4 mm:
         120 mm/s at 30 fps, not a swipe that leaves the surface), and whose point vanished with
         no raised point (too high to continue a contact) within ``held_near_mm`` (default
-        15 mm) of it, may be missing ``up_held_frames`` frames before ``up``. 0 (the default)
-        turns it off; it needs the camera's intrinsics (ranges [0, 300] frames, [1, 1e5],
-        [0, 1000] mm, [0, 1000] mm). Measured with 6 frames and ``held_gaps`` 3 and left off
-        (docs/config.md; docs/accuracy.md section 7, session 37).
+        15 mm) of it, may be missing ``up_held_frames`` frames before ``up`` (default 6; 0
+        turns it off); it needs the camera's intrinsics (ranges [0, 300] frames, [1, 1e5],
+        [0, 1000] mm, [0, 1000] mm). Measured in session 37 and left off; on since session 43,
+        after the check set `long-hold` (a finger held 10 s): its held-out half's id switches
+        15 -> 9, none more on 13 other held-out halves, lift latency p95 up by 3 frames at most
+        (docs/config.md; docs/accuracy.md section 7, sessions 37 and 43).
     pending_step_max_mm: a contact not yet down whose point moved farther than this since it
         was last seen (per frame: twice this after a missing frame; grown with ``gate_fps``
         like the gate), while the hand pixels right behind it lie higher than
@@ -293,8 +295,8 @@ class TrackingConfig:
     step_max_mm: float = 80.0
     flat_max_mm: float = 10.0
     up_frames: int = 3
-    up_held_frames: int = 0
-    held_gaps: int = 2
+    up_held_frames: int = 6
+    held_gaps: int = 3
     held_step_mm: float = 4.0
     held_near_mm: float = 15.0
     merge_mm: float = 25.0
