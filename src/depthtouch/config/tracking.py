@@ -229,7 +229,7 @@ class TrackingConfig:
         contacts unchanged; 10 and 12 mm added 1-3 false touches (a hover-as-touch ended and
         begun again). No change on the default suite (range [0, 200] mm; 0 turns it off).
     doubt_frames: a contact that is down goes ``up`` once its point has given no evidence of a
-        touch (weight 0 in evidence_weights: attached like a forearm's edge, the hand behind it
+        touch (weight 0 in tracking.evidence: attached like a forearm's edge, the hand behind it
         too high, level heights behind it, or on another finger's axis) for this many frames
         in a row; the point starts over as a pending contact. Nothing else ends a contact that
         came down on the wrong thing while it stays in the band: on hard-fresh3's tune half a

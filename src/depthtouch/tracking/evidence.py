@@ -79,13 +79,11 @@ def enclosure_asks(points: TouchPoints, config: TrackingConfig) -> np.ndarray | 
             & (points.height_mm >= config.enclosed_height_min_mm))
 
 
-def evidence_weights(points: TouchPoints, xy: list[XY], area_px: list[int], ok_new: list[bool],
-                     steep: list[bool], scale: float | None,
-                     config: TrackingConfig) -> list[float]:
-    """How much one frame of each point counts toward ``down`` (see :func:`evidence`): the
-    weights with the enclosure test's refusals applied."""
-    w, refused = evidence(points, xy, area_px, ok_new, steep, scale, config)
-    return w if refused is None else [0.0 if r else v for v, r in zip(w, refused, strict=True)]
+def refused_out(weights: list[float], refused: list[bool] | None) -> list[float]:
+    """``weights`` with the enclosure test's refusals (from :func:`evidence`) set to 0."""
+    if refused is None:
+        return weights
+    return [0.0 if r else v for v, r in zip(weights, refused, strict=True)]
 
 
 def evidence(points: TouchPoints, xy: list[XY], area_px: list[int], ok_new: list[bool],

@@ -45,7 +45,7 @@ import numpy as np
 from ..config import TouchPointConfig, TrackingConfig
 from ..types import TouchPoints, TouchState
 from .assign import assign, gated_cost, nearest_index
-from .evidence import XY, evidence, steep_tips
+from .evidence import XY, evidence, refused_out, steep_tips
 from .framerate import FrameRate
 from .lift import CoreHistory, held_grace
 
@@ -249,8 +249,7 @@ class Tracker:
                                         cfg)
         # the enclosure test refuses a touch's start; a contact that is down keeps the weights
         # without it when enclosed_pending_only (its finger arrived; a held finger is still)
-        weight = (weight_held if refused is None
-                  else [0.0 if r else v for v, r in zip(weight_held, refused, strict=True)])
+        weight = refused_out(weight_held, refused)
         if refused is None or not cfg.enclosed_pending_only:
             weight_held = weight
         # in a stream faster than reference_fps, a contact's first frame counts as one
