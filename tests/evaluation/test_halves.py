@@ -497,3 +497,16 @@ def test_long_hold_check_set_holds_one_finger_ten_seconds_before_every_camera_ki
         assert {c.hand for c in cases if c.group == group} == {"capsule", "anatomic"}
     assert {c.pitch_deg for c in cases if c.group == "hold-steep"} == {55.0}
     _every_group_on_both_halves(cases)
+
+
+def test_second_rest_tof_check_set_rests_forearms_at_placements_of_its_own() -> None:
+    """rest-tof2: a forearm resting before ToF (with and without the hand's noise x 1.5) and
+    structured light, at placements and seeds no other suite uses, both hands, every group
+    on both halves."""
+    cases, _ = _own_check_set("rest-tof2", 36)
+    assert {c.scene for c in cases} == {"rest"}
+    assert {c.camera for c in cases} == {"kinect-v2-hard", "kinect-v1-hard"}
+    for group in {c.group for c in cases}:
+        assert {c.hand for c in cases if c.group == group} == {"capsule", "anatomic"}
+    assert {c.skin_noise for c in cases if c.group == "rest-tof-skin"} == {1.5}
+    _every_group_on_both_halves(cases)
