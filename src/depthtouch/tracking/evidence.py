@@ -147,7 +147,10 @@ def evidence(points: TouchPoints, xy: list[XY], area_px: list[int], ok_new: list
         w = [(min(v, low_w) if h <= low else 0.0) if a > long_px else v
              for v, a, h in zip(w, attach_px.tolist(), points.height_mm.tolist(),
                                 strict=True)]
-    asks = enclosure_asks(points, config)
+    # with the change condition, a frame whose points the pipeline measured no change for
+    # (recent_change_mm None: it asked about none) refuses none; no need to ask again
+    asks = (None if config.enclosed_change_max_mm > 0.0 and points.recent_change_mm is None
+            else enclosure_asks(points, config))
     refused: list[bool] | None = None
     if asks is not None:
         # (an unknown share, height or change, NaN, compares False: no evidence taken away)

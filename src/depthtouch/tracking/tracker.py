@@ -245,19 +245,17 @@ class Tracker:
         ath: list[float] = (
             [] if slide_mm <= 0 else [math.inf] * n_p if points.attach_height_mm is None
             else [math.inf if math.isnan(v) else v for v in points.attach_height_mm.tolist()])
-        weight_held, refused = evidence(points, xy, area, ok_new, steep, self.scale_mm_per_px,
-                                        cfg)
+        unrefused, refused = evidence(points, xy, area, ok_new, steep, self.scale_mm_per_px,
+                                      cfg)
+        weight = refused_out(unrefused, refused)
         # the enclosure test refuses a touch's start; a contact that is down keeps the weights
         # without it when enclosed_pending_only (its finger arrived; a held finger is still)
-        weight = refused_out(weight_held, refused)
-        if refused is None or not cfg.enclosed_pending_only:
-            weight_held = weight
+        held = unrefused if cfg.enclosed_pending_only else weight
         # in a stream faster than reference_fps, a contact's first frame counts as one
         # reference frame and each further frame as its length: its evidence is how long it
         # has been seen (exactly the weights at the reference rate and slower)
         grow = weight if frame == 1.0 else [v * frame for v in weight]
-        grow_held = (grow if weight_held is weight else weight_held if frame == 1.0
-                     else [v * frame for v in weight_held])
+        grow_held = grow if held is weight else held if frame == 1.0 else [v * frame for v in held]
         for i, t in enumerate(tracks):
             j = matched_t.get(i)
             if i in shift:
