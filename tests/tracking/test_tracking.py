@@ -591,6 +591,36 @@ def test_a_held_finger_that_comes_to_lie_still_in_its_hand(pending_only: bool, e
     assert "down" not in still
 
 
+@pytest.mark.parametrize(("share", "spread_mm", "attach_mm", "tip_mm", "flat_max_mm", "goes_down"), [
+    (0.4, 15.0, 30.0, 4.0, 22.0, False),   # a forearm's flank just laid down
+    (0.4, 15.0, 30.0, 4.0, 0.0, True),     # ... with the option off, it arrives as a finger does
+    (0.1, 15.0, 30.0, 4.0, 22.0, True),    # a finger lying flat: its hand at its back only
+    (0.4, 35.0, 30.0, 4.0, 22.0, True),    # fingers side by side at a slant rise behind their tips
+    (0.4, 15.0, 60.0, 4.0, 22.0, True),    # a finger beside the arm: its attachment rises steeply
+    (0.4, 15.0, 30.0, 12.0, 22.0, True),   # a steep finger's top, a finger's thickness high
+    (0.4, np.nan, 30.0, 4.0, 22.0, True),  # unknown heights behind it take nothing away
+    (0.4, 15.0, np.nan, 4.0, 22.0, False),  # an unknown attachment height counts as low
+])
+def test_an_enclosed_flank_level_behind_it_is_refused_while_it_arrives(
+        share: float, spread_mm: float, attach_mm: float, tip_mm: float, flat_max_mm: float,
+        goes_down: bool) -> None:
+    """enclosed_flat_*: a region the enclosure test asks about (share above
+    enclosed_share_max) with level heights behind it, a low attachment and a low tip gives no
+    evidence even though its surroundings changed 12 mm (a forearm lowered onto the surface
+    arrives as a finger does); a flat finger (its ring mostly surface), fingers side by side
+    rising behind their tips, a finger whose attachment rises steeply and a steep finger's top
+    still go down."""
+    tip = TouchPoints(np.array([[100.0, 100.0]]), np.array([tip_mm]), np.array([300]),
+                      np.array([[np.nan, np.nan]]), None, np.array([10]), np.array([attach_mm]),
+                      np.array([spread_mm]), attach_share=np.array([share]),
+                      recent_change_mm=np.array([12.0]))
+    cfg = TrackingConfig(down_frames=2, enclosed_share_max=0.25, enclosed_change_max_mm=4.0,
+                         flat_max_mm=10.0, enclosed_flat_max_mm=flat_max_mm,
+                         enclosed_flat_attach_max_mm=40.0, enclosed_flat_height_max_mm=8.0)
+    states = [s for f in run(Tracker(cfg, scale_mm_per_px=1.0), [tip] * 8) for _, s in f]
+    assert ("down" in states) == goes_down
+
+
 @pytest.mark.parametrize(("step_mm", "goes_down"), [(35.0, True), (150.0, False), (np.nan, True)])
 def test_a_region_next_to_a_high_step_gives_no_evidence(step_mm: float, goes_down: bool) -> None:
     """Mixed pixels at the side of a hand 150 mm up are not a fingertip; a finger rising from

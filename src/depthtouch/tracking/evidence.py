@@ -163,8 +163,16 @@ def evidence(points: TouchPoints, xy: list[XY], area_px: list[int], ok_new: list
             still = [c < c_max for c in ch]
         else:
             still = [True] * n
-        refused = [q and not at >= a_max and st and not s
-                   for q, at, st, s in zip(asks.tolist(), ah, still, steep, strict=True)]
+        # ... and, whatever moved, a region with level heights behind it (a flank just laid down)
+        f_max = config.enclosed_flat_max_mm
+        fa_max, fh_max = config.enclosed_flat_attach_max_mm, config.enclosed_flat_height_max_mm
+        flat_back = ([b < f_max and not at >= fa_max and not h >= fh_max
+                      for b, at, h in zip(back_spread_mm.tolist(), ah, points.height_mm.tolist(),
+                                          strict=True)]
+                     if f_max > 0.0 and back_spread_mm is not None else [False] * n)
+        refused = [q and not s and ((st and not at >= a_max) or fb)
+                   for q, at, st, s, fb in zip(asks.tolist(), ah, still, steep, flat_back,
+                                              strict=True)]
     step = config.step_max_mm
     if attach_height_mm is not None and step > 0:
         # (an unknown height, NaN, compares False: no evidence taken away)
