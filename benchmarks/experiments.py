@@ -148,9 +148,10 @@ class Experiments:
         self.md: list[str] = []
         self.keep_others = False  # --only: keep the sections of the steps not run
         self.timings: dict[str, float] = {}
+        self.cache: Path | None = None  # --cache: the suites' recordings rendered once
 
     def run(self, cases: list[SuiteCase], config: PipelineConfig | None = None) -> list[EvalResult]:
-        return run_cases(cases, config, workers=self.workers)
+        return run_cases(cases, config, workers=self.workers, cache=self.cache)
 
     def fig(self, name: str) -> str:
         return f"figures/{name}"
@@ -478,6 +479,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     p.add_argument("--out", default=str(ROOT / "docs" / "accuracy.md"))
     p.add_argument("--workers", type=int, default=2)
     p.add_argument("--quick", action="store_true", help="fewer distances, seeds and thresholds")
+    p.add_argument("--cache", action="store_true",
+                   help="read the suites' recordings from the eval cache (render missing ones)")
     p.add_argument("--only",
                    help="comma-separated: suite,distance,statistic,thresholds,curved,hard")
     a = p.parse_args(argv)
@@ -486,6 +489,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     figures.mkdir(parents=True, exist_ok=True)
     ex = Experiments(out, figures, a.workers, a.quick)
     ex.keep_others = bool(a.only)
+    if a.cache:
+        from depthtouch.evaluation.suite import cache_root
+
+        ex.cache = cache_root()
     steps = (a.only or "suite,distance,statistic,thresholds,curved,hard").split(",")
     t0 = time.perf_counter()
     for step in steps:

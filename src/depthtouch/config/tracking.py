@@ -141,7 +141,9 @@ class TrackingConfig:
         Defaults 28 mm, 40 mm, 8 mm (session 44; the first 0 turns it off; ranges [0, 100],
         [0, 10000], [0, 1000]). Chosen on the tune halves of eight sets: false touches 54 ->
         38 (rest-tof2 14 -> 2, rest-tof 14 -> 10), one contact lost (a faint ToF tip at 1 m on
-        hard-extra); held out: HELDOUT (docs/accuracy.md section 7, session 44). The flat test
+        hard-extra); held out: false touches 49 -> 34
+        (rest-tof 17 -> 9, rest-tof2 11 -> 5, from hovers >= 25 mm 3 -> 0), one contact lost
+        (hard: ToF 2 m, a hand held low) (docs/accuracy.md section 7, session 44). The flat test
         alone at 22 mm (``flat_max_mm``) would refuse a finger laid flat (pitch 15° or less):
         the share condition keeps it for regions in a hand.
     step_max_mm: a finger rises from the band gradually; a region whose attached hand pixels
