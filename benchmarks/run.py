@@ -227,6 +227,11 @@ def _analysis(rows: list) -> list[str]:
         "for a touch's start only) `make bench` read 0.966 ms (p95 1.142) against 0.987 in "
         "session 42, within the spread between runs; after the review (the enclosure test not "
         "asked twice in a frame) 0.957 ms (p95 1.182).",
+        "- Session 44 ran on another machine (an AMD EPYC VM instead of a Xeon): 640x480 with 5 "
+        "touches 0.630 ms (p95 0.813) against 0.957 ms, from the machine, not the code; the "
+        "session's one change (the enclosure test also refuses a level flank while it arrives) "
+        "adds a list comprehension over the few points that test asks about, none in this "
+        "scene. Compare runs on one machine only.",
         "- The fingertip kernel reads small windows of six per-pixel surface arrays that the "
         "full-frame passes (median, band) push out of the cache each frame: the same call takes "
         "about half the time on warm data. Memory, not arithmetic, is most of what is left.",
