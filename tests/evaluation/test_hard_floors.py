@@ -34,7 +34,9 @@ pytest.importorskip("depthtouch.sim")
 # 0.817 mm, angle 3.95 deg, the rest unchanged; session 26, tracking.weak_quiet_evidence 0.25:
 # 0.82 false touches per minute, no touch down while its finger was >= 25 mm up (4 before),
 # jitter 0.934 mm, the rest unchanged; session 39, the still models in the path filter: jitter
-# 0.760 mm, error 1.33 / 4.96 mm, angle 3.94 deg, the rest unchanged); "max" floors are upper
+# 0.760 mm, error 1.33 / 4.96 mm, angle 3.94 deg, the rest unchanged; session 44, a forearm's
+# flank refused while it is laid down: recall 0.970, 0.72 false touches per minute, jitter
+# 0.752 mm, error 1.32 / 4.93 mm, the rest unchanged); "max" floors are upper
 # bounds. Some are short of issue 13's
 # targets: they guard against regressions, see docs/accuracy.md.
 FLOORS_MIN: dict[str, float] = {"recall_working": 0.965, "recall_drift": 0.93}
