@@ -164,16 +164,15 @@ def evidence(points: TouchPoints, xy: list[XY], area_px: list[int], ok_new: list
             still = [c < c_max for c in ch]
         else:
             still = [True] * n
-        # ... and, whatever moved, a region with level heights behind it (a flank just laid down)
-        f_max = config.enclosed_flat_max_mm
+        # ... and, whatever moved, one lying low and level behind (a flank just laid down;
+        # an unknown spread, NaN, compares False: not level)
+        f_max = config.enclosed_flat_max_mm if back_spread_mm is not None else 0.0
         fa_max, fh_max = config.enclosed_flat_attach_max_mm, config.enclosed_flat_height_max_mm
-        flat_back = ([b < f_max and not at >= fa_max and not h >= fh_max
-                      for b, at, h in zip(back_spread_mm.tolist(), ah, points.height_mm.tolist(),
-                                          strict=True)]
-                     if f_max > 0.0 and back_spread_mm is not None else [False] * n)
-        refused = [q and not s and ((st and not at >= a_max) or fb)
-                   for q, at, st, s, fb in zip(asks.tolist(), ah, still, steep, flat_back,
-                                              strict=True)]
+        back = [math.nan] * n if back_spread_mm is None else back_spread_mm.tolist()
+        refused = [q and not s and ((st and not at >= a_max)
+                                    or (b < f_max and not at >= fa_max and not h >= fh_max))
+                   for q, at, st, s, b, h in zip(asks.tolist(), ah, still, steep, back,
+                                                 points.height_mm.tolist(), strict=True)]
     step = config.step_max_mm
     if attach_height_mm is not None and step > 0:
         # (an unknown height, NaN, compares False: no evidence taken away)
