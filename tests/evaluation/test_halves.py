@@ -512,3 +512,18 @@ def test_second_rest_tof_check_set_rests_forearms_at_placements_of_its_own() -> 
         assert {c.hand for c in cases if c.group == group} == {"capsule", "anatomic"}
     assert {c.skin_noise for c in cases if c.group == "rest-tof-skin"} == {1.5}
     _every_group_on_both_halves(cases)
+
+
+def test_second_long_hold_check_set_holds_fingers_at_placements_of_its_own() -> None:
+    """long-hold2: the `hold` scene (one finger held 10 s) at the hard profiles, at placements
+    and seeds no other suite uses, both hands, steep fingers at 50 and 60 deg on ToF and
+    stereo, every group on both halves."""
+    cases, _ = _own_check_set("long-hold2", 52)
+    assert {c.scene for c in cases} == {"hold"}
+    assert {c.camera for c in cases} == {"kinect-v2-hard", "realsense-d435-hard", "kinect-v1-hard"}
+    for group in {c.group for c in cases}:
+        assert {c.hand for c in cases if c.group == group} == {"capsule", "anatomic"}
+    steep = [c for c in cases if c.group == "hold-steep"]
+    assert {c.pitch_deg for c in steep} == {50.0, 60.0}
+    assert {c.camera for c in steep} == {"kinect-v2-hard", "realsense-d435-hard"}
+    _every_group_on_both_halves(cases)

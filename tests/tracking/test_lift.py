@@ -110,3 +110,81 @@ def test_lift_core_is_validated() -> None:
     from depthtouch.errors import ConfigError
     with pytest.raises(ConfigError, match="lift_core_mm"):
         TrackingConfig(lift_core_mm=-1.0).validate()
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_the_noise_is_the_median_step_of_the_tracks_core(seed: int) -> None:
+    rng = np.random.default_rng(seed)
+    values = rng.normal(20.0, 8.0, lift.HISTORY + 40)
+    values[rng.random(values.size) < 0.1] = np.nan  # unknown values are skipped
+    h = CoreHistory()
+    assert h.noise() == 0.0
+    known: list[float] = []
+    for v in values:
+        h.update(float(v))
+        if math.isfinite(v):
+            known.append(float(v))
+        steps = np.abs(np.diff(known))[-lift.HISTORY:]
+        assert h.noise() == pytest.approx(float(np.median(steps)) if steps.size else 0.0, abs=1e-9)
+    h.reset()
+    assert h.noise() == 0.0
+    h.update(30.0)
+    assert h.noise() == 0.0  # one value: no step yet
+
+
+def _flickering_hold(frames: int = 150, seed: int = 0) -> list[TouchPoints]:
+    """A steep finger held still at range: its point moves a pixel now and then, and its core
+    (the 3x3 heights there) jumps between the tip (12-25 mm) and the finger rising steeply
+    behind it (40-56 mm), for one or two frames at a time."""
+    rng = np.random.default_rng(seed)
+    cores: list[float] = []
+    high = False
+    while len(cores) < frames:
+        lo, hi = (40.0, 56.0) if high else (12.0, 25.0)
+        cores.extend(rng.uniform(lo, hi, int(rng.integers(1, 3))).tolist())
+        high = not high
+    return [_tip(3.0, c) for c in cores[:frames]]
+
+
+@pytest.mark.parametrize("seed", [2, 3, 4])
+def test_a_held_finger_whose_core_flickers_keeps_its_id_with_the_noise(seed: int) -> None:
+    frames = _flickering_hold(seed=seed)
+    plain = Tracker(TrackingConfig(lift_core_mm=15.0), TouchPointConfig(), scale_mm_per_px=1.0)
+    assert len(_ids_down(_states(plain, frames))) > 3  # the plain test breaks the hold up
+    cfg = TrackingConfig(lift_core_mm=15.0, lift_noise_k=1.0)
+    tr = Tracker(cfg, TouchPointConfig(), scale_mm_per_px=1.0)
+    states = _states(tr, frames)
+    assert _ids_down(states) == [1]
+    assert not any(s == "up" for f in states for _, s in f)
+
+
+def test_with_the_noise_two_taps_whose_core_shows_the_lift_are_still_two_touches() -> None:
+    cfg = TrackingConfig(lift_core_mm=15.0, lift_noise_k=1.0)
+    tr = Tracker(cfg, TouchPointConfig(), scale_mm_per_px=1.0)
+    frames = _states(tr, _taps(core_between=35.0, frames_between=8))
+    assert _ids_down(frames) == [1, 2]
+    assert [k for k, f in enumerate(frames) if any(s == "up" for _, s in f)] == [20 + 3]
+
+
+def test_lift_noise_k_is_validated() -> None:
+    from depthtouch.errors import ConfigError
+    with pytest.raises(ConfigError, match="lift_noise_k"):
+        TrackingConfig(lift_noise_k=-0.5).validate()
+
+
+def test_the_noise_allowance_is_for_contacts_down_not_for_pending_ones() -> None:
+    """A finger hovering after a flickering descent (core 8 / 28 mm, steps of 20 mm, then 50 mm:
+    a rise of about 32 mm, within 15 + 1 x 20): a pending contact keeps the plain test and does
+    not go down; a contact already down is kept through the same rise by the allowance."""
+    frames = [_tip(3.0, 8.0 if i % 2 else 28.0) for i in range(10)] + [_tip(3.0, 50.0)] * 10
+    for k in (0.0, 1.0):
+        cfg = TrackingConfig(lift_core_mm=15.0, lift_noise_k=k, down_frames=14)
+        assert _ids_down(_states(Tracker(cfg, TouchPointConfig(), scale_mm_per_px=1.0),
+                                 frames)) == []
+    ups = {}
+    for k in (0.0, 1.0):
+        cfg = TrackingConfig(lift_core_mm=15.0, lift_noise_k=k, down_frames=3)
+        states = _states(Tracker(cfg, TouchPointConfig(), scale_mm_per_px=1.0), frames)
+        assert _ids_down(states)[0] == 1
+        ups[k] = sum(s == "up" for f in states for _, s in f)
+    assert ups == {0.0: 1, 1.0: 0}

@@ -39,6 +39,14 @@ HISTORY = 300
 MINHIST = 10
 
 
+def _pct(ranked: list[float], pct: float) -> float:
+    """``pct`` percentile of a sorted, non-empty list (linear, as ``np.percentile``)."""
+    pos = pct / 100.0 * (len(ranked) - 1)
+    lo = int(pos)
+    hi = min(lo + 1, len(ranked) - 1)
+    return ranked[lo] + (pos - lo) * (ranked[hi] - ranked[lo])
+
+
 @dataclass(slots=True)
 class CoreHistory:
     """The core heights of one track, frame after frame (``update``; ``reset`` to forget)."""
@@ -46,6 +54,9 @@ class CoreHistory:
     recent: deque[float] = field(default_factory=lambda: deque(maxlen=RECENT))
     order: deque[float] = field(default_factory=lambda: deque(maxlen=HISTORY))
     ranked: list[float] = field(default_factory=list)  # ``order`` sorted
+    last: float = math.nan  # the last known core height
+    steps: deque[float] = field(default_factory=lambda: deque(maxlen=HISTORY))
+    steps_ranked: list[float] = field(default_factory=list)  # ``steps`` sorted
 
     def update(self, core_mm: float) -> float:
         """Take one frame's core height (mm; NaN: unknown, ignored) and return how far the
@@ -54,6 +65,13 @@ class CoreHistory:
         if not math.isfinite(core_mm):
             return math.nan
         self.recent.append(core_mm)
+        if math.isfinite(self.last):
+            if len(self.steps) == HISTORY:
+                del self.steps_ranked[bisect_left(self.steps_ranked, self.steps[0])]
+            step = abs(core_mm - self.last)
+            self.steps.append(step)
+            insort(self.steps_ranked, step)
+        self.last = core_mm
         r = self.recent
         # the median (numpy's: the mean of the middle two of an even count)
         level = sorted(r)[len(r) // 2] if len(r) != 2 else 0.5 * (r[0] + r[1])
@@ -71,15 +89,23 @@ class CoreHistory:
         r = self.ranked
         if not r:
             return math.nan
-        pos = BASE_PCT / 100.0 * (len(r) - 1)
-        lo = int(pos)
-        hi = min(lo + 1, len(r) - 1)
-        return r[lo] + (pos - lo) * (r[hi] - r[lo])
+        return _pct(r, BASE_PCT)
+
+    def noise(self) -> float:
+        """How far the track's core jumps from one known value to the next (mm): the median of
+        those steps over its last HISTORY values; 0 before two are known."""
+        r = self.steps_ranked
+        if not r:
+            return 0.0
+        return _pct(r, 50.0)
 
     def reset(self) -> None:
         self.recent.clear()
         self.order.clear()
         self.ranked.clear()
+        self.last = math.nan
+        self.steps.clear()
+        self.steps_ranked.clear()
 
 
 def held_grace(cfg: TrackingConfig, gaps: int, vel: tuple[float, float], at: tuple[float, float],

@@ -193,6 +193,7 @@ class Tracker:
         offset: list[XY] = ([(0.0, 0.0)] * n_p if points.offset_px is None
                             else list(map(tuple, points.offset_px.tolist())))
         lift_mm = self.config.lift_core_mm
+        noise_k = self.config.lift_noise_k
         dir_w = self.config.report_dir_weight
         core = ([math.nan] * n_p if points.core_height_mm is None or lift_mm <= 0
                 else points.core_height_mm.tolist())
@@ -280,7 +281,10 @@ class Tracker:
             if j is not None:
                 w_j = grow_held[j] if t.active else grow[j]
                 rise = t.core.update(core[j]) if t.core is not None else math.nan
-                if rise > lift_mm:  # (NaN compares False)
+                # (a contact that is down may rise by its own core's noise besides: a steep held
+                # tip's core jumps between the tip and the finger behind it; a pending one may not)
+                if rise > lift_mm and (not t.active or noise_k <= 0 or t.core is None
+                                       or rise > lift_mm + noise_k * t.core.noise()):
                     if t.active:
                         # its core rose above the contact's own level: lifted, though the tip
                         # still reads low; a missing frame, but the point stays taken
