@@ -260,8 +260,8 @@ class TrackingConfig:
         switches 12 -> 5 and changed nothing on the tune halves of hard, hard-extra,
         hard-fresh2, long-hold, drift-hold and the default suite (steep: 7 -> 5 false
         touches), but the held-out halves of long-hold2 and long-hold hold no such break and
-        did not move, which the rule asked for (range [0, 100];
-        docs/accuracy.md section 7, session 45).
+        did not move, which the rule asked for, and steep's held-out half merged one tap into
+        the touch before it (range [0, 100]; docs/accuracy.md section 7, session 45).
     doubt_frames: a contact that is down goes ``up`` once its point has given no evidence of a
         touch (weight 0 in tracking.evidence: attached like a forearm's edge, the hand behind it
         too high, level heights behind it, or on another finger's axis) for this many frames
