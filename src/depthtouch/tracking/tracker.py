@@ -281,8 +281,9 @@ class Tracker:
             if j is not None:
                 w_j = grow_held[j] if t.active else grow[j]
                 rise = t.core.update(core[j]) if t.core is not None else math.nan
-                # (a contact that is down may rise by its own core's noise besides: a steep held
-                # tip's core jumps between the tip and the finger behind it; a pending one may not)
+                # (NaN compares False; a contact that is down may rise by its own core's noise
+                # besides, lift_noise_k: a steep held tip's core jumps between the tip and the
+                # finger behind it; a pending one may not)
                 if rise > lift_mm and (not t.active or noise_k <= 0 or t.core is None
                                        or rise > lift_mm + noise_k * t.core.noise()):
                     if t.active:
