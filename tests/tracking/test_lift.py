@@ -130,6 +130,12 @@ def test_the_noise_is_the_median_step_of_the_tracks_core(seed: int) -> None:
     assert h.noise() == 0.0
     h.update(30.0)
     assert h.noise() == 0.0  # one value: no step yet
+    # without keep_noise (the tracker's history when lift_noise_k is 0) no step is kept, and
+    # the rise is the same
+    off, on = CoreHistory(keep_noise=False), CoreHistory()
+    for v in values:
+        assert off.update(float(v)) == pytest.approx(on.update(float(v)), nan_ok=True)
+    assert off.noise() == 0.0 and not off.steps and on.noise() > 0.0
 
 
 def _flickering_hold(frames: int = 150, seed: int = 0) -> list[TouchPoints]:

@@ -59,6 +59,7 @@ class CoreHistory:
     recent: deque[float] = field(default_factory=lambda: deque(maxlen=RECENT))
     order: deque[float] = field(default_factory=lambda: deque(maxlen=HISTORY))
     ranked: list[float] = field(default_factory=list)  # ``order`` sorted
+    keep_noise: bool = True  # keep the steps for :meth:`noise` (off: no cost per frame)
     last: float = math.nan  # the last known core height
     steps: deque[float] = field(default_factory=lambda: deque(maxlen=HISTORY))
     steps_ranked: list[float] = field(default_factory=list)  # ``steps`` sorted
@@ -70,13 +71,14 @@ class CoreHistory:
         if not math.isfinite(core_mm):
             return math.nan
         self.recent.append(core_mm)
-        if math.isfinite(self.last):
-            if len(self.steps) == HISTORY:
-                del self.steps_ranked[bisect_left(self.steps_ranked, self.steps[0])]
-            step = abs(core_mm - self.last)
-            self.steps.append(step)
-            insort(self.steps_ranked, step)
-        self.last = core_mm
+        if self.keep_noise:
+            if math.isfinite(self.last):
+                if len(self.steps) == HISTORY:
+                    del self.steps_ranked[bisect_left(self.steps_ranked, self.steps[0])]
+                step = abs(core_mm - self.last)
+                self.steps.append(step)
+                insort(self.steps_ranked, step)
+            self.last = core_mm
         r = self.recent
         # the median (numpy's: the mean of the middle two of an even count)
         level = sorted(r)[len(r) // 2] if len(r) != 2 else 0.5 * (r[0] + r[1])
@@ -98,7 +100,8 @@ class CoreHistory:
 
     def noise(self) -> float:
         """How far the track's core jumps from one known value to the next (mm): the median of
-        those steps over its last HISTORY values; 0 before two are known."""
+        those steps over its last HISTORY values; 0 before two are known (always 0 without
+        ``keep_noise``)."""
         r = self.steps_ranked
         if not r:
             return 0.0

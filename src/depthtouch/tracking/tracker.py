@@ -366,7 +366,7 @@ class Tracker:
             t = Track(xy[j], pos[j], float(h[j]), int(area[j]), hand_at_border=border[j],
                       evidence=weight[j], offset_px=offset[j])
             if lift_mm > 0:
-                t.core = CoreHistory()
+                t.core = CoreHistory(keep_noise=noise_k > 0)
                 t.core.update(core[j])
             if t.evidence >= down_frames - 1e-9:
                 self._activate(t)
