@@ -233,6 +233,10 @@ def _analysis(rows: list) -> list[str]:
         "adds a list comprehension over the few points that test asks about, none in this "
         "scene. After the review (the flank test folded into the enclosure test's one list) "
         "0.662 ms (p95 1.515), within the spread between runs. Compare runs on one machine only.",
+        "- Session 45: the lift test's history keeps its core's steps only when "
+        "`tracking.lift_noise_k` is on (off by default); kept always, they read the tracking step "
+        "0.076 -> 0.081 ms with 5 touches. After the review 640x480 with 5 touches 0.624 ms "
+        "(p95 1.368), the same machine as session 44.",
         "- The fingertip kernel reads small windows of six per-pixel surface arrays that the "
         "full-frame passes (median, band) push out of the cache each frame: the same call takes "
         "about half the time on warm data. Memory, not arithmetic, is most of what is left.",
