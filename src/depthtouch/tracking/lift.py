@@ -44,12 +44,35 @@ HISTORY = 300
 MINHIST = 10
 
 
-def _pct(ranked: list[float], pct: float) -> float:
-    """``pct`` percentile of a sorted, non-empty list (linear, as ``np.percentile``)."""
-    pos = pct / 100.0 * (len(ranked) - 1)
-    lo = int(pos)
-    hi = min(lo + 1, len(ranked) - 1)
-    return ranked[lo] + (pos - lo) * (ranked[hi] - ranked[lo])
+@dataclass(slots=True)
+class RankedWindow:
+    """The last HISTORY values pushed, in order and sorted, for their percentiles."""
+
+    order: deque[float] = field(default_factory=lambda: deque(maxlen=HISTORY))
+    ranked: list[float] = field(default_factory=list)  # ``order`` sorted
+
+    def push(self, v: float) -> None:
+        if len(self.order) == HISTORY:
+            del self.ranked[bisect_left(self.ranked, self.order[0])]
+        self.order.append(v)
+        insort(self.ranked, v)
+
+    def pct(self, pct: float) -> float:
+        """``pct`` percentile of the values (linear, as ``np.percentile``); NaN when none."""
+        r = self.ranked
+        if not r:
+            return math.nan
+        pos = pct / 100.0 * (len(r) - 1)
+        lo = int(pos)
+        hi = min(lo + 1, len(r) - 1)
+        return r[lo] + (pos - lo) * (r[hi] - r[lo])
+
+    def __len__(self) -> int:
+        return len(self.order)
+
+    def clear(self) -> None:
+        self.order.clear()
+        self.ranked.clear()
 
 
 @dataclass(slots=True)
@@ -57,12 +80,10 @@ class CoreHistory:
     """The core heights of one track, frame after frame (``update``; ``reset`` to forget)."""
 
     recent: deque[float] = field(default_factory=lambda: deque(maxlen=RECENT))
-    order: deque[float] = field(default_factory=lambda: deque(maxlen=HISTORY))
-    ranked: list[float] = field(default_factory=list)  # ``order`` sorted
+    levels: RankedWindow = field(default_factory=RankedWindow)  # the medians of ``recent``
     keep_noise: bool = True  # keep the steps for :meth:`noise` (off: no cost per frame)
     last: float = math.nan  # the last known core height
-    steps: deque[float] = field(default_factory=lambda: deque(maxlen=HISTORY))
-    steps_ranked: list[float] = field(default_factory=list)  # ``steps`` sorted
+    steps: RankedWindow = field(default_factory=RankedWindow)  # |change| between known values
 
     def update(self, core_mm: float) -> float:
         """Take one frame's core height (mm; NaN: unknown, ignored) and return how far the
@@ -73,47 +94,32 @@ class CoreHistory:
         self.recent.append(core_mm)
         if self.keep_noise:
             if math.isfinite(self.last):
-                if len(self.steps) == HISTORY:
-                    del self.steps_ranked[bisect_left(self.steps_ranked, self.steps[0])]
-                step = abs(core_mm - self.last)
-                self.steps.append(step)
-                insort(self.steps_ranked, step)
+                self.steps.push(abs(core_mm - self.last))
             self.last = core_mm
         r = self.recent
         # the median (numpy's: the mean of the middle two of an even count)
         level = sorted(r)[len(r) // 2] if len(r) != 2 else 0.5 * (r[0] + r[1])
-        if len(self.order) == HISTORY:
-            del self.ranked[bisect_left(self.ranked, self.order[0])]
-        self.order.append(level)
-        insort(self.ranked, level)
-        if len(self.order) < MINHIST:
+        self.levels.push(level)
+        if len(self.levels) < MINHIST:
             return math.nan
         return level - self.base()
 
     def base(self) -> float:
         """The track's own level (mm): BASE_PCT percentile of its recent levels (linear, as
         ``np.percentile``); NaN when none is known."""
-        r = self.ranked
-        if not r:
-            return math.nan
-        return _pct(r, BASE_PCT)
+        return self.levels.pct(BASE_PCT)
 
     def noise(self) -> float:
         """How far the track's core jumps from one known value to the next (mm): the median of
         those steps over its last HISTORY values; 0 before two are known (always 0 without
         ``keep_noise``)."""
-        r = self.steps_ranked
-        if not r:
-            return 0.0
-        return _pct(r, 50.0)
+        return self.steps.pct(50.0) if len(self.steps) else 0.0
 
     def reset(self) -> None:
         self.recent.clear()
-        self.order.clear()
-        self.ranked.clear()
+        self.levels.clear()
         self.last = math.nan
         self.steps.clear()
-        self.steps_ranked.clear()
 
 
 def held_grace(cfg: TrackingConfig, gaps: int, vel: tuple[float, float], at: tuple[float, float],
