@@ -236,7 +236,8 @@ def _analysis(rows: list) -> list[str]:
         "- Session 45: the lift test's history keeps its core's steps only when "
         "`tracking.lift_noise_k` is on (off by default); kept always, they read the tracking step "
         "0.076 -> 0.081 ms with 5 touches. After the review 640x480 with 5 touches 0.624 ms "
-        "(p95 1.368), the same machine as session 44.",
+        "(p95 1.368), the same machine as session 44; with the two rolling windows of the lift "
+        "test sharing one class (the review), 0.633 ms (p95 0.889), within the spread.",
         "- The fingertip kernel reads small windows of six per-pixel surface arrays that the "
         "full-frame passes (median, band) push out of the cache each frame: the same call takes "
         "about half the time on warm data. Memory, not arithmetic, is most of what is left.",
