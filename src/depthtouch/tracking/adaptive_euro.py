@@ -37,37 +37,26 @@ class AdaptiveEuroFilter(FilterBase):
         explain (a tip that landed off its first measurement) is closed at once; range
         (0, 1000], default 3.0 mm.
     noise_mm, noise_s: the touch's measured noise σ (mm RMS per axis, from the second
-        differences of its measurements: 3.07·σ is their mean norm for white noise; each
-        clipped at 3σ + 1 mm so that a jump or a turn does not inflate it), averaged over
-        ``noise_s`` (default 1 s) starting from ``noise_mm`` (default 1 mm); it sets the rest
-        lock's radius. (Scaling ``hold_mm`` or ``half_weight_mm`` by it was measured and left
-        out: docs/filters.md.)
+        differences of its measurements, each clipped at 3σ + 1 mm), averaged over ``noise_s``
+        (default 1 s) from ``noise_mm`` (default 1 mm); it sets the rest lock's radius.
     The rest lock (lock_frames > 0): a finger proven still is held at the running mean of its
     measurements, ignoring one-frame jumps of its tip estimate.
 
     - It locks when the weighted least-squares line through its measurements (weights decaying
-      by 1 − 1/lock_frames per frame: about the last ``lock_frames``, default 32, after at
-      least that many) moves slower than ``lock_mm_s`` (default 5 mm/s). Noise cannot fake
-      this: the line's slope is known to about ±1-2 mm/s, so a slow drag (10 mm/s and more)
-      never locks and passes exactly as with the lock off.
+      by 1 − 1/lock_frames per frame, after at least ``lock_frames``, default 32) moves slower
+      than ``lock_mm_s`` (default 5 mm/s): a drag of 10 mm/s and more never locks.
     - The lock starts at the output so far (the 1€ stage's, or the landing's: no jump), with
       a radius of max(``lock_mm``, ``lock_sigmas``·σ) (defaults 4 mm, 3). Its mean then runs
       over the last ``lock_mean_frames`` (default 30) measurements that lie within twice the
       radius: a far outlier moves neither the output nor the mean.
-    - It ends when the median of the last three measurements leaves the radius: a one-frame
-      jump never ends it, a real move ends it on its second frame (then the 1€ stage, which
-      ran all along, is the output again; it closes the gap at once).
-    - Off by default, ``lock_resume_frames`` > 0 (e.g. 10): a lock that ends is remembered
-      (unless one that ended less than ``lock_resume_frames`` ago still is: a lock entered
-      during an excursion does not take its place). If the finger is still again within
-      ``lock_resume_frames`` frames of that end and the median of its last three lies within
-      that lock's radius of its mean, it takes that lock back (mean, count, radius) instead of
-      starting a new one from the 1€ output, which the excursion has pulled aside: a noise
-      excursion of two or three frames beyond the radius (stereo at 1 m) would otherwise move a
-      held finger for the rest of its hold. A move that stays away starts a new lock as before.
-      Measured (docs/accuracy.md section 7, session 37): held-out jitter hard 0.878 → 0.865 mm,
-      hard-extra 0.606 → 0.617 mm, the other halves unchanged; that failed its rule (no half
-      up by more than 0.005 mm), so it stays off.
+    - It ends when the median of the last three measurements leaves the radius (a move, on its
+      second frame); then the 1€ stage, which ran all along, is the output again.
+    - Off by default, ``lock_resume_frames`` > 0 (e.g. 10): a lock that ended is remembered
+      (an older one is not replaced by one entered during an excursion), and a finger still
+      again within that many frames, the median of its last three within that lock's radius
+      of its mean, takes it back (mean, count, radius) instead of starting a new lock from the
+      1€ output the excursion pulled aside. Off: it failed its rule on the held-out halves
+      (docs/accuracy.md section 7, session 37).
     - Ranges: lock_frames [0, 10000] (0 turns the lock off, values under 2 count as 2),
       lock_mm_s (0, 10000], lock_mm (0, 1000], lock_sigmas [0, 100], lock_mean_frames
       [1, 1e6], lock_resume_frames [0, 10000] (0, the default: never taken back),
@@ -86,43 +75,29 @@ class AdaptiveEuroFilter(FilterBase):
     - The output is the mean plus a·(the 1€ stage's output − the mean), with a rising from 0
       at z = ``land_blend_sigmas`` (default 1.5) to 1 at z = ``land_sigmas`` (default 6). A
       drag from touch-down leaves the mean as soon as its line is steeper than the noise.
-    - Restart: a finger reported down while it still descends at a slant, then holds, would
-      keep the descent in its mean. Once the window holds 2·K measurements (K =
-      ``land_restart_frames``, default 8), if the last K medians are flat (slope within half
-      ``land_sigmas`` standard errors) and their mean lies more than ``land_restart_sigmas``
-      (default 4) standard errors from the mean of the ones before, the window restarts at
-      the last K. This happens at most once per touch: a drag at 5-10 mm/s can look flat over
-      K frames too, and repeated restarts would hold it.
+    - Restart (once per touch: a finger reported down while it still descends at a slant):
+      once the window holds 2·K measurements (K = ``land_restart_frames``, default 8), if the
+      last K medians are flat (slope within half ``land_sigmas`` standard errors) and their
+      mean lies more than ``land_restart_sigmas`` (default 4) standard errors from the mean of
+      the ones before, the window restarts at the last K.
     - It ends for good at z > ``land_sigmas`` or after ``land_frames`` (default 32)
       measurements of its window; then the 1€ stage, which ran all along, is the output (or
       the lock).
-    - Cost on a drag from touch-down: at most half a frame's travel on the second frame (the
-      mean of two), under 1 mm more lag than without it at 10-60 mm/s; its end comes a frame
-      later than a test on the raw measurements would (the median's delay).
+    - Cost on a drag from touch-down: at most half a frame's travel on its second frame, under
+      1 mm more lag at 10-60 mm/s (docs/filters.md).
     - Ranges: land_frames [0, 10000] (0 turns it off), land_blend_sigmas [0, 100],
       land_sigmas (0, 100], land_restart_frames [0, 16] (under 2 turns the restart off),
       land_restart_sigmas (0, 100].
     The re-landing (reland_frames >= 2, with the landing on; off by default): a finger that
     stops after a move lands again, instead of waiting ``lock_frames`` for the lock while the
-    1€ stage closes the last few mm of its lag at the rest cutoff. It lowered held-out jitter
-    (hard 0.845 → 0.806 mm) but a finger that keeps wiggling at 20-35 mm/s under noise lands
-    again and again, and each landing frame ran the landing's array work: filter + events
-    0.47 → 0.92 ms with 5 such touches in ``make bench`` (the same VM). Since the step is
-    compiled (``eurokernel.py``, session 28) it costs 0.004 ms; measured again then, held-out
-    jitter fell on hard (0.934 → 0.857 mm) and did not move on hard-fresh2 (0.866 mm, the same
-    to the last digit), which failed that session's rule (a fall on both), so it stays off.
-    Measured in docs/filters.md ("The re-landing").
+    1€ stage closes the last few mm of its lag at the rest cutoff. Off: it lowered hard's
+    held-out jitter but not hard-fresh2's, which failed its rule (docs/filters.md, "The
+    re-landing", sessions 23 and 28).
 
-    - A touch is marked as moved when the 1€ stage's speed exceeds ``reland_mm_s`` (default
-      40 mm/s, the speed noise of a finger at rest).
-    - A moved touch that is neither landing nor locked, whose last ``reland_frames`` (6 when on)
-      medians lie on a line flatter than ``reland_sigmas`` (default 2) standard errors of its
-      slope, starts a landing from those measurements, and is no longer marked.
-    - From there it is the landing above: the output is their mean, blended out as its line
-      steepens, ended by ``land_sigmas`` or ``land_frames``.
-    - A drag slower than ``reland_mm_s`` is never marked and never lands again, so a slow drag
-      is not held; a drag marked by a burst of noise may land again for a few frames, at most a
-      frame's travel plus 1 mm behind (tested).
+    - A touch that moved faster than ``reland_mm_s`` (default 40 mm/s), neither landing nor
+      locked, whose last ``reland_frames`` (6 when on) medians lie on a line flatter than
+      ``reland_sigmas`` (default 2) standard errors, starts the landing above from those
+      measurements; a slower drag is never held (tested).
     - Ranges: reland_frames [0, 16] (under 2 turns it off), reland_sigmas (0, 100],
       reland_mm_s [0, 10000].
     The still models (still_p > 0; on by default since session 39, 0.01): an
@@ -137,18 +112,11 @@ class AdaptiveEuroFilter(FilterBase):
       freedom: a tip estimate's one-frame jumps are not Gaussian). The still model's
       innovation is clipped at 3 standard deviations.
     - Measurement noise: ``still_noise_mul`` (1.5) times a noise level of their own, started
-      at ``still_noise_mm`` (1.5 mm) and followed at the slow rate (``noise_s``) only: the
-      filter's own σ, quick from the first frames, grows on a drag's turns and would keep the
-      still model plausible there.
+      at ``still_noise_mm`` (1.5 mm) and followed at the slow rate (``noise_s``) only.
     - Output: the output so far plus g·(the still model's position − it), g the still
       probability above ``still_gate`` (0.5) rescaled to [0, 1].
-    - Measured (docs/accuracy.md section 7, session 39; filter replay of the recorded inputs):
-      still-finger jitter fell on every half measured (held-out hard 0.878 → 0.760 mm,
-      hard-fresh2 0.858 → 0.670, hard-fresh3 1.221 → 1.150, hard-extra 0.606 → 0.414;
-      hard-fresh5, run once, 0.826 → 0.606 and 1.097 → 0.787) with the drags' lag up by
-      0.2-0.3 ms. Its price: the first frame of a move from rest is held like a one-frame
-      jump (error p95 +0.40 mm on hard-fresh2's held-out half, path angle +0.15-0.52°), and
-      a drag at 10-20 mm/s falls 2.1-2.3 mm behind (1.2-1.6 mm without).
+    - Price (docs/filters.md, "The still models"): a move's first frame from rest is held like
+      a one-frame jump, and a drag at 10-20 mm/s lags 2.1-2.3 mm.
     - Ranges: still_p [0, 0.5] (0 turns them off), still_q_mm2_s [0, 1e6], move_q_mm2_s3
       (0, 1e9], still_noise_mm (0, 100], still_noise_mul (0, 100], still_gate [0, 0.99].
     Defaults chosen by measurement (docs/filters.md).
