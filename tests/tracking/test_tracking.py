@@ -1,3 +1,5 @@
+from dataclasses import replace
+
 import numpy as np
 import pytest
 from hypothesis import given, settings
@@ -630,6 +632,42 @@ def test_a_region_next_to_a_high_step_gives_no_evidence(step_mm: float, goes_dow
     tr = Tracker(TrackingConfig(down_frames=2, step_max_mm=80.0), scale_mm_per_px=1.0)
     states = [s for f in run(tr, [tip] * 8) for _, s in f]
     assert ("down" in states) == goes_down
+
+
+def _high_step_tip(x: float) -> TouchPoints:
+    """A low tip (scale 1 mm/px) whose attached hand pixels lie 90 mm up (above step_max_mm)."""
+    return TouchPoints(np.array([[x, 100.0]]), np.array([5.0]), np.array([300]),
+                       np.array([[np.nan, np.nan]]), None, np.array([10]), np.array([90.0]))
+
+
+@pytest.mark.parametrize(("xs", "frames", "down_at"), [
+    ([100.0] * 12, 10, 10),                   # still: the step test stops refusing at frame 10
+    ([100.0 + 2.0 * (k % 2) for k in range(12)], 10, 10),  # within still_step_mm: still
+    ([100.0 + 6.0 * k for k in range(12)], 10, None),      # moving: refused throughout
+    ([100.0] * 12, 0, None),                  # off: refused throughout
+    ([100.0] * 3 + [120.0] * 9, 5, 8),        # moved: its run starts over where it went
+])
+def test_a_still_point_beside_a_high_step_counts_after_still_step_frames(
+        xs: list[float], frames: int, down_at: int | None) -> None:
+    """still_step_frames: a point that stays within still_step_mm for that many frames in a row
+    is no longer refused by the step test (a finger standing steep stays; mixed pixels beside a
+    raised hand move with it)."""
+    tr = Tracker(TrackingConfig(down_frames=2, step_max_mm=80.0, still_step_frames=frames,
+                                still_step_mm=5.0), scale_mm_per_px=1.0)
+    out = run(tr, [_high_step_tip(x) for x in xs])
+    downs = [k for k, f in enumerate(out) if any(s == "down" for _, s in f)]
+    assert downs == ([] if down_at is None else [down_at])
+
+
+def test_a_still_contact_beside_a_high_step_is_not_doubted() -> None:
+    """still_step_frames: once down, a still point beside a high step keeps its id past
+    doubt_frames; with the option off nothing goes down at all."""
+    frames = [_high_step_tip(100.0)] * 40
+    cfg = TrackingConfig(down_frames=2, step_max_mm=80.0, still_step_frames=10, doubt_frames=5)
+    states = [s for f in run(Tracker(cfg, scale_mm_per_px=1.0), frames) for _, s in f]
+    assert states.count("down") == 1 and "up" not in states
+    off = replace(cfg, still_step_frames=0)
+    assert not [s for f in run(Tracker(off, scale_mm_per_px=1.0), frames) for _, s in f]
 
 
 @pytest.mark.parametrize(("spread_mm", "goes_down"),

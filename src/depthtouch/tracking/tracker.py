@@ -28,16 +28,17 @@ with ``enclosed_pending_only`` (the default) the enclosure test's refusals do no
 that test judges a touch's start, and a finger held still is as still as a resting hand.
 With ``pending_step_max_mm`` set (off by default), a pending contact whose point arrives
 sliding under a raised hand gains no evidence in that frame (a time-of-flight camera's mixed
-depths along a hand sweeping past). Ids are never reused within a run. With ``reference_fps``
-set (off by default), the evidence counts frames at that rate: in a faster stream (from the
-frames' timestamps, :mod:`.framerate`) a frame counts its length, so that a contact goes down
-after as many frames and as much time as at that rate.
+depths along a hand sweeping past); with ``still_step_frames`` (off), a point that stays put
+is not refused for the hand's height behind it. Ids are never reused within a run. With
+``reference_fps`` set (off by default), the evidence counts frames at that rate: in a faster
+stream (from the frames' timestamps, :mod:`.framerate`) a frame counts its length, so that a
+contact goes down after as many frames and as much time as at that rate.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import NamedTuple
 
 import numpy as np
@@ -82,6 +83,8 @@ class Track:
     offset_px: XY = (0.0, 0.0)
     offset_dir: XY = (0.0, 0.0)  # the smoothed direction of offset_px (0, 0: none yet)
     core: CoreHistory | None = None  # its finger's core heights (TrackingConfig.lift_core_mm)
+    still_at: XY = (math.nan, math.nan)  # where its point's still run began (pos units)
+    still_n: int = 0  # frames in a row its point stayed near still_at
 
     @property
     def report_px(self) -> XY:
@@ -257,6 +260,10 @@ class Tracker:
         # has been seen (exactly the weights at the reference rate and slower)
         grow = weight if frame == 1.0 else [v * frame for v in weight]
         grow_held = grow if held is weight else held if frame == 1.0 else [v * frame for v in held]
+        # still_step_frames: the weights without the step test, for contacts whose point has
+        # stayed put long enough (computed only when one needs them)
+        still_n = cfg.still_step_frames if self.scale_mm_per_px is not None else 0
+        grow_still: tuple[list[float], list[float]] | None = None
         for i, t in enumerate(tracks):
             j = matched_t.get(i)
             if i in shift:
@@ -280,6 +287,17 @@ class Tracker:
                 continue
             if j is not None:
                 w_j = grow_held[j] if t.active else grow[j]
+                if still_n > 0:
+                    sx, sy = t.still_at
+                    if math.hypot(pos[j][0] - sx, pos[j][1] - sy) <= cfg.still_step_mm:
+                        t.still_n += 1
+                    else:
+                        t.still_at, t.still_n = pos[j], 1
+                    if t.still_n >= still_n and w_j <= 0.0 and (t.active or ok_new[j]):
+                        if grow_still is None:
+                            grow_still = self._weights_without_step(points, xy, area, ok_new,
+                                                                    steep, frame)
+                        w_j = grow_still[1][j] if t.active else grow_still[0][j]
                 rise = t.core.update(core[j]) if t.core is not None else math.nan
                 # (NaN compares False; a contact that is down may rise by its own core's noise
                 # besides, lift_noise_k: a steep held tip's core jumps between the tip and the
@@ -364,7 +382,7 @@ class Tracker:
             if j in used or not ok_new[j]:
                 continue
             t = Track(xy[j], pos[j], float(h[j]), int(area[j]), hand_at_border=border[j],
-                      evidence=weight[j], offset_px=offset[j])
+                      evidence=weight[j], offset_px=offset[j], still_at=pos[j], still_n=1)
             if lift_mm > 0:
                 t.core = CoreHistory(keep_noise=noise_k > 0)
                 t.core.update(core[j])
@@ -374,6 +392,21 @@ class Tracker:
             keep.append(t)
         self.tracks = keep
         return out
+
+    def _weights_without_step(self, points: TouchPoints, xy: list[XY], area: list[int],
+                              ok_new: list[bool], steep: list[bool], frame: float
+                              ) -> tuple[list[float], list[float]]:
+        """This frame's weights with the step test off (TrackingConfig.still_step_frames),
+        grown by ``frame``: for a pending contact (after the enclosure test) and for one that
+        is down (after it only without ``enclosed_pending_only``)."""
+        cfg = replace(self.config, step_max_mm=0.0)
+        unrefused, refused = evidence(points, xy, area, ok_new, steep, self.scale_mm_per_px,
+                                      cfg)
+        w = refused_out(unrefused, refused)
+        held = unrefused if cfg.enclosed_pending_only else w
+        if frame != 1.0:
+            w, held = [v * frame for v in w], [v * frame for v in held]
+        return w, held
 
     def _pending_low_mm(self) -> float:
         """How low a pending contact's tip must be for pending_low_gap_frames (mm; -inf where
