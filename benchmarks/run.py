@@ -241,6 +241,9 @@ def _analysis(rows: list) -> list[str]:
         "- Session 46: no change to the per-frame path (the filter's class doc only); run again "
         "at the session's end, 640x480 with 5 touches 0.625 ms (p95 0.831) and 0.627 ms (p95 "
         "0.852) in two runs, tracking 0.074-0.076 ms, the same machine.",
+        "- Session 47: the tracker asks `tracking.still_step_frames` (off by default) once per "
+        "matched track; 640x480 with 5 touches 0.625 ms (p95 0.794), tracking 0.075 ms, the "
+        "same machine.",
         "- The fingertip kernel reads small windows of six per-pixel surface arrays that the "
         "full-frame passes (median, band) push out of the cache each frame: the same call takes "
         "about half the time on warm data. Memory, not arithmetic, is most of what is left.",
