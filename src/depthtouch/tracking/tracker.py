@@ -293,7 +293,7 @@ class Tracker:
                         t.still_n += 1
                     else:
                         t.still_at, t.still_n = pos[j], 1
-                    if t.still_n >= still_n and w_j <= 0.0 and (t.active or ok_new[j]):
+                    if t.still_n >= still_n and w_j <= 0.0:
                         if grow_still is None:
                             grow_still = self._weights_without_step(points, xy, area, ok_new,
                                                                     steep, frame)
