@@ -243,7 +243,8 @@ def _analysis(rows: list) -> list[str]:
         "0.852) in two runs, tracking 0.074-0.076 ms, the same machine.",
         "- Session 47: the tracker asks `tracking.still_step_frames` (off by default) once per "
         "matched track; 640x480 with 5 touches 0.625 ms (p95 0.794), tracking 0.075 ms, the "
-        "same machine.",
+        "same machine; after the review (a redundant test dropped) 0.605 ms (p95 0.766), "
+        "tracking 0.074 ms, within the spread between runs.",
         "- The fingertip kernel reads small windows of six per-pixel surface arrays that the "
         "full-frame passes (median, band) push out of the cache each frame: the same call takes "
         "about half the time on warm data. Memory, not arithmetic, is most of what is left.",
