@@ -187,9 +187,11 @@ class Pipeline:
             return self._result(frame, [], "skipped")
         t0 = time.perf_counter()
         frame = self._prefilter(frame)
-        # keep the surroundings of touches of arms reaching in from the border: a finger held
-        # still is never absorbed; a "touch" on something standing on the surface is
-        verdict = surface.follow(frame, np.array(self._tracker.held_at_border()))
+        # keep the surroundings of touches of arms reaching in from the border (of every touch
+        # with adapt.keep_all_touches): a finger held still is never absorbed; a "touch" on
+        # something standing on the surface is
+        held = self._tracker.held_xy_px(border_only=not self.config.adapt.keep_all_touches)
+        verdict = surface.follow(frame, np.array(held))
         if verdict == "bump":
             return self._relearn(frame)
         if verdict == "disturbed":

@@ -73,6 +73,28 @@ def test_finger_held_still_ten_seconds_is_never_absorbed():
     assert last and np.hypot(last[0].x - f.x, last[0].y - f.y) * MM_PER_PX < 3.0
 
 
+@pytest.mark.parametrize("keep_all", [False, True])
+def test_a_hand_whose_arm_ends_inside_the_view_is_kept_with_keep_all_touches(keep_all):
+    """A finger held still 10 s whose hand ends inside the view (no arm to the image border:
+    a camera far enough to see the whole arm). By default the still hand is absorbed like an
+    object and the touch ends; with adapt.keep_all_touches the touch's hand is kept whole: one
+    touch, never up, the table under the fingertip and the hand still the table."""
+    f = Finger(320, 240, 90, arm=False)
+    hm = render_heights((480, 640), [f], MM_PER_PX)
+    cfg = config_from_dict({"adapt": {"keep_all_touches": keep_all}})
+    p, log = run([lambda k: hm] * int(10 * FPS), cfg)
+    states = [e.state for _, evs in log for e in evs]
+    hand = p.surface.bounds.surface_mm[285:315, 305:335]  # the hand, 75-125 mm behind the tip
+    assert states.count("down") == 1
+    if not keep_all:
+        assert "up" in states and float(np.median(hand)) < 980.0
+        return
+    assert "up" not in states
+    assert abs(float(np.median(hand)) - 1000.0) < 3.0
+    last = log[-1][1]
+    assert last and np.hypot(last[0].x - f.x, last[0].y - f.y) * MM_PER_PX < 3.0
+
+
 @pytest.mark.parametrize(("shadow", "edge_outside"), [(True, True), (False, True), (True, False)])
 def test_a_hand_whose_arm_enters_across_the_band_without_depth_is_never_absorbed(shadow,
                                                                                   edge_outside):

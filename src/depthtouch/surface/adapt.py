@@ -13,11 +13,15 @@ horizontal stripe of the image per frame (so the cost is spread evenly):
   constant ``drift_tau_s``);
 - never absorbed: anything connected to a change that reaches the image border (a hand is
   attached to an arm that enters from outside the view, and the arm rises above the band), and
-  anything within ``keep_out_mm`` of an active touch. A finger held still for minutes stays a
-  finger. A pixel that lost its depth over a usable surface pixel is a change too (an arm
-  nearer than the camera measures, the shadow along its edge), and the unusable pixels that
-  reach the image border (a stereo camera's band without depth on its left) are outside the
-  view: an arm that enters across them reaches the border;
+  anything within ``keep_out_mm`` of an active touch whose hand reaches that border (with
+  ``keep_all_touches``: of every active touch, and the whole change that reaches into that
+  circle). A finger held still for minutes stays a finger, as long as its arm reaches the
+  border (the simulator's arm ends at the shoulder: from about 1.3 m the whole arm is in view,
+  and a hand held still there is absorbed unless ``keep_all_touches``). A pixel that lost its
+  depth over a usable surface pixel is a change too (an arm nearer than the camera measures,
+  the shadow along its edge), and the unusable pixels that reach the image border (a stereo
+  camera's band without depth on its left) are outside the view: an arm that enters across
+  them reaches the border;
 - when more than ``bump_fraction`` of the surface changes at once, touches are off; when it
   stays so, still, for ``bump_s``, the camera has moved: :meth:`SurfaceAdapter.check` says
   ``"bump"`` and the pipeline learns the surface again.
@@ -202,12 +206,19 @@ class SurfaceAdapter:
         # band without depth is outside the view too: a hand whose arm enters across it (and
         # whose shadow, without depth, separates it from the rest) is still a person's.
         lev = part_levels(changed | self._outside, 1.0, math.inf)
-        excl = dilate3x3(((lev == 2) & (changed > 0)).view(np.uint8))
+        person = (lev == 2) & (changed > 0)
+        near = np.zeros_like(changed)
         if len(touch_xy_px):
             r = max(1, int(round(cfg.keep_out_mm / b.mm_per_px / _SCALE)))
             for x_px, y_px in np.asarray(touch_xy_px, np.float64):
-                cv2.circle(excl, (int(x_px / _SCALE), int(y_px / _SCALE)), r, 1, thickness=-1)
-        self._exclude = excl
+                cv2.circle(near, (int(x_px / _SCALE), int(y_px / _SCALE)), r, 1, thickness=-1)
+            if cfg.keep_all_touches:
+                # a touch's hand is a person's also where its arm ends inside the view: every
+                # change that reaches into a touch's circle is kept whole
+                _, labels = cv2.connectedComponents(changed, connectivity=8)
+                held = np.unique(labels[(near > 0) & (changed > 0)])
+                person |= np.isin(labels, held[held > 0])
+        self._exclude = dilate3x3(person.view(np.uint8)) | near
 
 
 def _nearest(n_out: int, n_in: int) -> np.ndarray:

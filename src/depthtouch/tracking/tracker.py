@@ -156,10 +156,10 @@ class Tracker:
         """Gate in mm with this many mm per px from now on (None: gate in pixels)."""
         self.scale_mm_per_px = scale_mm_per_px
 
-    def held_at_border(self) -> list[XY]:
-        """Image positions (px) of the active contacts whose hand reaches in from the border:
-        a finger held still there must never become surface."""
-        return [t.xy_px for t in self.tracks if t.active and t.hand_at_border]
+    def held_xy_px(self, border_only: bool = False) -> list[XY]:
+        """Image positions (px) of the active contacts (``border_only``: only those whose hand
+        reaches in from the image border): a finger held still there must never become surface."""
+        return [t.xy_px for t in self.tracks if t.active and (t.hand_at_border or not border_only)]
 
     @property
     def gate(self) -> float:
