@@ -435,8 +435,9 @@ def test_skin_check_set_raises_the_hands_noise_at_placements_of_its_own() -> Non
     both hands, at placements and seeds no other suite uses (but rest-tof, made after it ran to
     try its forearm placement with other seeds), every situation on both halves; the hand's
     noise is raised nowhere else but in the resting-forearm sets made after it (rest-tof,
-    rest-tof2)."""
-    cases, others = _own_check_set("skin-tof", 40, leave_out=("rest-tof", "rest-tof2"))
+    rest-tof2, rest-tof3)."""
+    cases, others = _own_check_set("skin-tof", 40,
+                                   leave_out=("rest-tof", "rest-tof2", "rest-tof3"))
     assert {c.skin_noise for c in cases} == {1.5} and {c.camera for c in cases} == {"kinect-v2-hard"}
     assert {c.hand for c in cases} == {"capsule", "anatomic"}
     assert all("/skin1.5/" in c.label for c in cases)
@@ -511,6 +512,20 @@ def test_second_rest_tof_check_set_rests_forearms_at_placements_of_its_own() -> 
     for group in {c.group for c in cases}:
         assert {c.hand for c in cases if c.group == group} == {"capsule", "anatomic"}
     assert {c.skin_noise for c in cases if c.group == "rest-tof-skin"} == {1.5}
+    _every_group_on_both_halves(cases)
+
+
+def test_third_rest_tof_set_rests_forearms_at_placements_of_its_own() -> None:
+    """rest-tof3 (session 48's study set): the resting forearm before ToF (with and without the
+    hand's noise x 1.5, up to 1.3 m) and structured light, at placements and seeds no other
+    suite uses, both hands, every group on both halves."""
+    cases, _ = _own_check_set("rest-tof3", 36)
+    assert {c.scene for c in cases} == {"rest"}
+    assert {c.camera for c in cases} == {"kinect-v2-hard", "kinect-v1-hard"}
+    for group in {c.group for c in cases}:
+        assert {c.hand for c in cases if c.group == group} == {"capsule", "anatomic"}
+    assert {c.skin_noise for c in cases if c.group == "rest-tof-skin"} == {1.5}
+    assert max(c.distance_m for c in cases) == 1.3
     _every_group_on_both_halves(cases)
 
 
