@@ -233,11 +233,12 @@ class AdaptConfig:
     keep_all_touches: keep the surroundings of every active touch from absorption, not only of
         touches whose hand reaches in from the image border, and keep whole every change that
         reaches into such a touch's keep-out circle (its hand and arm) (default false). Where
-        the camera sees the whole arm (the simulator's arm ends at the shoulder: at 1.3 m and
-        more most hands do not reach the border), a finger held still is otherwise absorbed
-        with its hand about 1 s into the hold. Off: its first form (circles only) added false
-        touches on the held-out halves of the resting-forearm sets (rest-tof 9 -> 12, 2 of
-        them from hovers >= 25 mm; not traced) (docs/accuracy.md section 7, session 48).
+        the camera sees the whole arm (the simulator's arm ends at the shoulder: about half
+        the hands at 1.3 m, most at 1.6-2 m do not reach the border), a finger held still is
+        otherwise absorbed with its hand about 1 s into the hold. Off: on the held-out halves
+        it added false touches from hovers >= 25 mm on the resting-forearm sets (rest-tof
+        9 -> 11 with 2 of them, rest-tof2 5 -> 6 with 1; not traced) (docs/accuracy.md
+        section 7, session 48).
     edge_outside: when deciding what is a person (a change connected to the image border, never
         absorbed), the unusable pixels that reach the border count as outside the view (a
         stereo camera's band without depth on its left), and a usable pixel without depth as a
