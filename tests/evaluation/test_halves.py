@@ -502,30 +502,19 @@ def test_long_hold_check_set_holds_one_finger_ten_seconds_before_every_camera_ki
     _every_group_on_both_halves(cases)
 
 
-def test_second_rest_tof_check_set_rests_forearms_at_placements_of_its_own() -> None:
-    """rest-tof2: a forearm resting before ToF (with and without the hand's noise x 1.5) and
-    structured light, at placements and seeds no other suite uses, both hands, every group
-    on both halves."""
-    cases, _ = _own_check_set("rest-tof2", 36)
+@pytest.mark.parametrize(("name", "farthest_m"), [("rest-tof2", 1.22), ("rest-tof3", 1.3)])
+def test_rest_tof_check_sets_rest_forearms_at_placements_of_their_own(name: str,
+                                                                      farthest_m: float) -> None:
+    """rest-tof2, and rest-tof3 (session 48's study set, up to 1.3 m): a forearm resting before
+    ToF (with and without the hand's noise x 1.5) and structured light, at placements and seeds
+    no other suite uses, both hands, every group on both halves."""
+    cases, _ = _own_check_set(name, 36)
     assert {c.scene for c in cases} == {"rest"}
     assert {c.camera for c in cases} == {"kinect-v2-hard", "kinect-v1-hard"}
     for group in {c.group for c in cases}:
         assert {c.hand for c in cases if c.group == group} == {"capsule", "anatomic"}
     assert {c.skin_noise for c in cases if c.group == "rest-tof-skin"} == {1.5}
-    _every_group_on_both_halves(cases)
-
-
-def test_third_rest_tof_set_rests_forearms_at_placements_of_its_own() -> None:
-    """rest-tof3 (session 48's study set): the resting forearm before ToF (with and without the
-    hand's noise x 1.5, up to 1.3 m) and structured light, at placements and seeds no other
-    suite uses, both hands, every group on both halves."""
-    cases, _ = _own_check_set("rest-tof3", 36)
-    assert {c.scene for c in cases} == {"rest"}
-    assert {c.camera for c in cases} == {"kinect-v2-hard", "kinect-v1-hard"}
-    for group in {c.group for c in cases}:
-        assert {c.hand for c in cases if c.group == group} == {"capsule", "anatomic"}
-    assert {c.skin_noise for c in cases if c.group == "rest-tof-skin"} == {1.5}
-    assert max(c.distance_m for c in cases) == 1.3
+    assert max(c.distance_m for c in cases) == farthest_m
     _every_group_on_both_halves(cases)
 
 

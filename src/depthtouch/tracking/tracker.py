@@ -249,17 +249,7 @@ class Tracker:
         ath: list[float] = (
             [] if slide_mm <= 0 else [math.inf] * n_p if points.attach_height_mm is None
             else [math.inf if math.isnan(v) else v for v in points.attach_height_mm.tolist()])
-        unrefused, refused = evidence(points, xy, area, ok_new, steep, self.scale_mm_per_px,
-                                      cfg)
-        weight = refused_out(unrefused, refused)
-        # the enclosure test refuses a touch's start; a contact that is down keeps the weights
-        # without it when enclosed_pending_only (its finger arrived; a held finger is still)
-        held = unrefused if cfg.enclosed_pending_only else weight
-        # in a stream faster than reference_fps, a contact's first frame counts as one
-        # reference frame and each further frame as its length: its evidence is how long it
-        # has been seen (exactly the weights at the reference rate and slower)
-        grow = weight if frame == 1.0 else [v * frame for v in weight]
-        grow_held = grow if held is weight else held if frame == 1.0 else [v * frame for v in held]
+        weight, grow, grow_held = self._weights(points, xy, area, ok_new, steep, frame, cfg)
         # still_step_frames: the weights without the step test, for contacts whose point has
         # stayed put long enough (computed only when one needs them)
         still_n = cfg.still_step_frames if self.scale_mm_per_px is not None else 0
@@ -295,8 +285,9 @@ class Tracker:
                         t.still_at, t.still_n = pos[j], 1
                     if t.still_n >= still_n and w_j <= 0.0:
                         if grow_still is None:
-                            grow_still = self._weights_without_step(points, xy, area, ok_new,
-                                                                    steep, frame)
+                            _, g, gh = self._weights(points, xy, area, ok_new, steep, frame,
+                                                     replace(cfg, step_max_mm=0.0))
+                            grow_still = (g, gh)
                         w_j = grow_still[1][j] if t.active else grow_still[0][j]
                 rise = t.core.update(core[j]) if t.core is not None else math.nan
                 # (NaN compares False; a contact that is down may rise by its own core's noise
@@ -393,20 +384,24 @@ class Tracker:
         self.tracks = keep
         return out
 
-    def _weights_without_step(self, points: TouchPoints, xy: list[XY], area: list[int],
-                              ok_new: list[bool], steep: list[bool], frame: float
-                              ) -> tuple[list[float], list[float]]:
-        """This frame's weights with the step test off (TrackingConfig.still_step_frames),
-        grown by ``frame``: for a pending contact (after the enclosure test) and for one that
-        is down (after it only without ``enclosed_pending_only``)."""
-        cfg = replace(self.config, step_max_mm=0.0)
+    def _weights(self, points: TouchPoints, xy: list[XY], area: list[int], ok_new: list[bool],
+                 steep: list[bool], frame: float, cfg: TrackingConfig
+                 ) -> tuple[list[float], list[float], list[float]]:
+        """This frame's evidence weights under ``cfg``: as seen, then grown by ``frame`` for a
+        pending contact and for one that is down (``still_step_frames`` asks them again with
+        the step test off)."""
         unrefused, refused = evidence(points, xy, area, ok_new, steep, self.scale_mm_per_px,
                                       cfg)
-        w = refused_out(unrefused, refused)
-        held = unrefused if cfg.enclosed_pending_only else w
-        if frame != 1.0:
-            w, held = [v * frame for v in w], [v * frame for v in held]
-        return w, held
+        weight = refused_out(unrefused, refused)
+        # the enclosure test refuses a touch's start; a contact that is down keeps the weights
+        # without it when enclosed_pending_only (its finger arrived; a held finger is still)
+        held = unrefused if cfg.enclosed_pending_only else weight
+        # in a stream faster than reference_fps, a contact's first frame counts as one
+        # reference frame and each further frame as its length: its evidence is how long it
+        # has been seen (exactly the weights at the reference rate and slower)
+        grow = weight if frame == 1.0 else [v * frame for v in weight]
+        grow_held = grow if held is weight else held if frame == 1.0 else [v * frame for v in held]
+        return weight, grow, grow_held
 
     def _pending_low_mm(self) -> float:
         """How low a pending contact's tip must be for pending_low_gap_frames (mm; -inf where
