@@ -249,9 +249,10 @@ def _analysis(rows: list) -> list[str]:
         "per stripe cycle (every 24 frames); nothing else on the per-frame path changed. A first "
         "run read 640x480 with 5 touches 0.638 ms (p95 0.856), with OpenCV's reference pass "
         "0.623 -> 0.639 ms and the compressed replay 1.85 -> 2.40 ms in the same run: the "
-        "machine that hour, not the code: the table above is a second run (0.666 ms, p95 "
-        "1.582), and session 47's code (bde74ad) run right after it on the same machine read "
-        "0.661 ms (p95 1.231).",
+        "machine that hour, not the code: a second run read 0.666 ms (p95 1.582), and "
+        "session 47's code (bde74ad) run right after it on the same machine read "
+        "0.661 ms (p95 1.231). After the review (the tracker's evidence weights in one method, "
+        "no other change) 0.631 ms (p95 0.804), tracking 0.076 ms: the table above.",
         "- The fingertip kernel reads small windows of six per-pixel surface arrays that the "
         "full-frame passes (median, band) push out of the cache each frame: the same call takes "
         "about half the time on warm data. Memory, not arithmetic, is most of what is left.",
