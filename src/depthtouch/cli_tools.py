@@ -303,6 +303,10 @@ def _add_sim(sub: argparse._SubParsersAction) -> None:
                    help="the temporal noise of the hand (and anything on the surface) x K "
                         "[1, 4], and every pixel's growing with its incidence angle: a ToF "
                         "camera's noise follows the infrared amplitude it gets back")
+    p.add_argument("--body", action="store_true",
+                   help="arms go on past the shoulder into a body that leaves the view, as a "
+                        "person's do (without: the arm ends at the shoulder, seen whole from "
+                        "about 1.3 m)")
     p.add_argument("--no-noise", action="store_true", help="exact geometry, no sensor noise")
     p.add_argument("--views", type=int, metavar="N",
                    help="N cameras (2-3) 0.8 m apart: --out is a folder of viewK.npz, "
@@ -325,6 +329,8 @@ def _add_sim(sub: argparse._SubParsersAction) -> None:
             raise ConfigError("--motion-ms applies to one camera; leave it out with --views")
         if a.views is not None and a.skin_noise != 1.0:
             raise ConfigError("--skin-noise applies to one camera; leave it out with --views")
+        if a.views is not None and a.body:
+            raise ConfigError("--body applies to one camera; leave it out with --views")
         if a.views is not None:
             from .sim.multiview import default_poses, render_views, write_views
 
@@ -340,7 +346,7 @@ def _add_sim(sub: argparse._SubParsersAction) -> None:
             a.scene, camera=a.camera, distance_m=a.distance, tilt_deg=a.tilt,
             surface=a.surface, seed=a.seed, fps=a.fps, noise=not a.no_noise, hand=a.hand,
             resolution_scale=a.resolution_scale, pitch_deg=a.pitch, noise_scale=a.noise_scale,
-            motion_ms=a.motion_ms, skin_noise=a.skin_noise,
+            motion_ms=a.motion_ms, skin_noise=a.skin_noise, body=a.body,
         )
         write_recording(rec, a.out, a.truth)
         if not a.quiet:

@@ -18,6 +18,7 @@ group is a grid of scenes x cameras x distances x surfaces x tilts x hands x see
     pitches_deg = [60.0]           # optional: every lead finger at this pitch (default: drawn)
     motion_ms = 12.0               # optional: ToF motion mixing over this span (default 0: none)
     skin_noise = 1.5               # optional: noise of what stands on the surface x this (1: none)
+    body = true                    # optional: arms go on into a body that leaves the view
     seeds = [1]
     tags = ["quick"]               # optional: subsets a run may select
 
@@ -69,6 +70,7 @@ class SuiteCase:
     motion_ms: the span of the camera's raw exposures (ms; 0: none), see ``render_scene``.
     skin_noise: the temporal noise of what stands on the surface times this, and the noise's
     growth with the incidence angle (1: none), see ``render_scene``.
+    body: arms go on past the shoulder into a body that leaves the view, see ``render_scene``.
     """
 
     scene: str
@@ -85,6 +87,7 @@ class SuiteCase:
     noise_scale: float = 1.0
     motion_ms: float = 0.0
     skin_noise: float = 1.0
+    body: bool = False
 
     @property
     def label(self) -> str:
@@ -96,8 +99,9 @@ class SuiteCase:
         noise = "" if self.noise_scale == 1.0 else f"/noise{self.noise_scale:g}"
         motion = "" if self.motion_ms == 0.0 else f"/motion{self.motion_ms:g}"
         skin = "" if self.skin_noise == 1.0 else f"/skin{self.skin_noise:g}"
+        body = "/body" if self.body else ""
         return (f"{self.scene}/{self.camera}{res}/{self.distance_m:g}m{surf}{tilt}{hand}"
-                f"{pitch}{noise}{motion}{skin}/s{self.seed}")
+                f"{pitch}{noise}{motion}{skin}{body}/s{self.seed}")
 
     def render_kwargs(self) -> dict[str, Any]:
         kw: dict[str, Any] = {"camera": self.camera, "distance_m": self.distance_m,
@@ -115,6 +119,8 @@ class SuiteCase:
             kw["motion_ms"] = self.motion_ms
         if self.skin_noise != 1.0:  # (absent at 1: the cache keys stay as they were)
             kw["skin_noise"] = self.skin_noise
+        if self.body:  # (absent without: the cache keys stay as they were)
+            kw["body"] = True
         return kw
 
     def cache_key(self) -> str:
@@ -251,7 +257,7 @@ def suite_from_dict(data: dict[str, Any], where: str = "suite") -> Suite:
         gname = str(g.get("name", f"group{i}"))
         gw = f"{where}: group {gname}"
         known = {"name", "scenes", "cameras", "distances_m", "surfaces", "tilts_deg", "seeds",
-                 "fps", "tags", "hands", "pitches_deg", "motion_ms", "skin_noise"}
+                 "fps", "tags", "hands", "pitches_deg", "motion_ms", "skin_noise", "body"}
         unknown = sorted(set(g) - known)
         if unknown:
             raise ConfigError(
@@ -273,6 +279,9 @@ def suite_from_dict(data: dict[str, Any], where: str = "suite") -> Suite:
         fps = _numbers([g.get("fps", 30.0)], "fps", gw, 1.0, 1000.0)[0]
         motion = _numbers([g.get("motion_ms", 0.0)], "motion_ms", gw, 0.0, 50.0)[0]
         skin = _numbers([g.get("skin_noise", 1.0)], "skin_noise", gw, 1.0, 4.0)[0]
+        body = g.get("body", False)
+        if not isinstance(body, bool):
+            raise ConfigError(f"{gw}: body = {body!r} must be true or false")
         tags = g.get("tags", [])
         if not isinstance(tags, list) or not all(isinstance(t, str) for t in tags):
             raise ConfigError(f"{gw}: tags must be a list of names")
@@ -284,7 +293,7 @@ def suite_from_dict(data: dict[str, Any], where: str = "suite") -> Suite:
                                                                          seeds):
                             c = SuiteCase(s, cam, d, surf, tilt, int(seed), fps, gname, hand,
                                           pitch_deg=pitch, motion_ms=motion,
-                                          skin_noise=skin)
+                                          skin_noise=skin, body=body)
                             key = dataclasses.replace(c, group="")
                             cases.setdefault(key, (c, set()))[1].update(tags)
     ordered = [c for c, _ in cases.values()]

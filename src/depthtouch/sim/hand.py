@@ -30,6 +30,10 @@ from .geometry import Capsule, Primitive, Surface
 FINGERS: tuple[str, ...] = ("thumb", "index", "middle", "ring", "little")
 PALM, ARM = 5, 6  # label offsets of the palm and the arm; fingers use their FINGERS index
 HAND_STYLES: tuple[str, ...] = ("capsule", "anatomic")
+#: the body past the shoulder (``HandShape.body``): a capsule of this radius (a torso seen from
+#: above or the side is 300-400 mm across) running this far, parallel to the surface, away from
+#: the hand: out of the view of every camera the simulator has at up to 2.5 m
+BODY_RADIUS_MM, BODY_LENGTH_MM = 160.0, 3000.0
 
 
 @dataclass(frozen=True)
@@ -76,6 +80,8 @@ class HandShape:
 
     finger_radius_mm: radius of the index/middle/ring finger capsules (6-10 mm; varies per seed).
     segments_mm: per finger (proximal, distal) lengths; distal includes the middle phalanx.
+    body: the arm goes on past the shoulder into a body (:data:`BODY_RADIUS_MM`) that leaves
+    the view; without it the arm ends at the shoulder, which a far camera sees whole.
     """
 
     finger_radius_mm: float
@@ -86,6 +92,7 @@ class HandShape:
     forearm_radius_mm: float
     side: int = 1
     anatomy: Anatomy | None = None
+    body: bool = False
 
     @classmethod
     def random(cls, rng: np.random.Generator, side: int = 1, style: str = "capsule"
@@ -260,12 +267,24 @@ def build_hand(
     w1 = wrist + 140.0 * adir
     elbow = wrist + 270.0 * adir
     shoulder = elbow + 280.0 * (-math.cos(math.radians(55)) * d + math.sin(math.radians(55)) * n)
+    shoulder = _in_front(elbow, shoulder)
     prims += [
         Capsule(wrist, w1, fr_mm * 0.95, arm),
         Capsule(w1, elbow, fr_mm * 1.25, arm),
-        Capsule(elbow, _in_front(elbow, shoulder), fr_mm * 1.5, arm),
+        Capsule(elbow, shoulder, fr_mm * 1.5, arm),
     ]
+    if shape.body:
+        prims.append(body_capsule(shoulder, -d, arm))
     return prims, tips
+
+
+def body_capsule(shoulder: np.ndarray, away: np.ndarray, label: int) -> Capsule:
+    """The body past ``shoulder`` (:data:`BODY_RADIUS_MM`): its axis runs from the shoulder
+    along ``away`` (a direction in the surface, away from the hand) for
+    :data:`BODY_LENGTH_MM`, kept in front of the camera. Its near end lies a radius behind the
+    shoulder, so that the body hides no more of the arm than a shoulder would."""
+    a = shoulder + BODY_RADIUS_MM * away
+    return Capsule(a, _in_front(a, a + BODY_LENGTH_MM * away), BODY_RADIUS_MM, label)
 
 
 def _anatomic_finger(shape: HandShape, name: str, tip_point: np.ndarray, n: np.ndarray,

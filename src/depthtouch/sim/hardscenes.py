@@ -24,7 +24,7 @@ from collections.abc import Callable
 import numpy as np
 
 from .geometry import Box, Capsule, Primitive
-from .hand import lateral_forward_st
+from .hand import body_capsule, lateral_forward_st
 from .scenes import (
     EMPTY_S,
     LABEL_OBJECT,
@@ -130,6 +130,8 @@ def _resting_hand(ctx: SceneContext, palm_st: np.ndarray, yaw: float, t_in: floa
         up = de / np.linalg.norm(de) * math.cos(math.radians(45.0)) + \
             ne * math.sin(math.radians(45.0))
         out.append(Capsule(e, e + 320.0 * up, r_arm * 1.2, LABEL_REST_HAND))
+        if ctx.body:
+            out.append(body_capsule(e + 320.0 * up, de / np.linalg.norm(de), LABEL_REST_HAND))
         return out
 
     return Prop(build)

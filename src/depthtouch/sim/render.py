@@ -112,6 +112,7 @@ def render_scene(
     noise_scale: float = 1.0,
     motion_ms: float = 0.0,
     skin_noise: float = 1.0,
+    body: bool = False,
 ) -> SimRecording:
     """Render ``scene`` (see :data:`~depthtouch.sim.SCENES`) as seen by ``camera``.
 
@@ -144,6 +145,10 @@ def render_scene(
     as 1/cos of the angle between its surface's normal and the optical axis (from the
     noise-free depth's gradient; at most 4x: a tilted wall, a finger's flank). The bias, the
     edge artefacts and every random draw stay as they were.
+    body: every arm goes on past the shoulder into a body that leaves the view (a torso-sized
+    capsule parallel to the surface, :func:`~depthtouch.sim.hand.body_capsule`), as a person
+    does; without it (default) the arm ends at the shoulder, and a camera from about 1.3 m
+    sees it whole. Every random draw stays as it was.
     Unknown names or out-of-range values raise ConfigError naming the valid ones.
     """
     if not (isinstance(resolution_scale, (int, float)) and 0.25 <= resolution_scale <= 3.0):
@@ -165,13 +170,16 @@ def render_scene(
     lo, hi = PITCH_RANGE_DEG
     if pitch_deg is not None and not (isinstance(pitch_deg, (int, float)) and lo <= pitch_deg <= hi):
         raise ConfigError(f"pitch_deg {pitch_deg!r} is out of range; allowed [{lo:g}, {hi:g}] deg")
+    if not isinstance(body, bool):
+        raise ConfigError(f"body {body!r} must be true or false")
     if hand not in HAND_STYLES:
         raise ConfigError(f"unknown hand {hand!r}; use one of {', '.join(HAND_STYLES)}")
     rays = Rays(profile.K, profile.resolution_wh)
     # independent streams for the script and the noise (SeedSequence works on numpy < 1.25)
     scene_rng, noise_rng = (np.random.default_rng(s)
                             for s in np.random.SeedSequence(int(seed)).spawn(2))
-    script = build_script(scene, SceneContext(world_surface, rays, scene_rng, hand, pitch_deg))
+    script = build_script(scene, SceneContext(world_surface, rays, scene_rng, hand, pitch_deg,
+                                                body))
     n = max(int(round(script.duration_s * fps)), 1)
     w, h = profile.resolution_wh
     depth = np.empty((n, h, w), np.uint16)

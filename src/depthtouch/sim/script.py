@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -104,16 +104,19 @@ class Script:
 
 class SceneContext:
     """What a scene script needs: the world surface, the camera rays, a generator, which hand
-    model its hands are (:data:`~depthtouch.sim.hand.HAND_STYLES`), and a finger pitch that
-    replaces the scenes' random ones (None: drawn; see :meth:`pitch`)."""
+    model its hands are (:data:`~depthtouch.sim.hand.HAND_STYLES`), a finger pitch that
+    replaces the scenes' random ones (None: drawn; see :meth:`pitch`), and whether arms go on
+    into a body that leaves the view (``HandShape.body``)."""
 
     def __init__(self, surface: Surface, rays: Rays, rng: np.random.Generator,
-                 hand_style: str = "capsule", pitch_deg: float | None = None) -> None:
+                 hand_style: str = "capsule", pitch_deg: float | None = None,
+                 body: bool = False) -> None:
         self.surface = surface
         self.rays = rays
         self.rng = rng
         self.hand_style = hand_style
         self.pitch_deg = pitch_deg
+        self.body = body
         self.base_yaw = self._base_yaw()
 
     def _base_yaw(self) -> float:
@@ -155,7 +158,10 @@ class SceneContext:
         return float(np.linalg.norm(a - b)) / 0.4
 
     def hand(self, side: int = 1) -> HandShape:
-        return HandShape.random(self.rng, side, self.hand_style)
+        """A hand of the scene's style; with ``body`` its arm goes on into a body (the same
+        draws either way, so a seed's scene is the same but for the body)."""
+        shape = HandShape.random(self.rng, side, self.hand_style)
+        return replace(shape, body=True) if self.body else shape
 
     def outside(self, st: np.ndarray, yaw: float) -> np.ndarray:
         """The first surface point behind ``st`` (against the finger direction) out of view.
