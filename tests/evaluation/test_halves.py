@@ -531,3 +531,14 @@ def test_second_long_hold_check_set_holds_fingers_at_placements_of_its_own() -> 
     assert {c.pitch_deg for c in steep} == {50.0, 60.0}
     assert {c.camera for c in steep} == {"kinect-v2-hard", "realsense-d435-hard"}
     _every_group_on_both_halves(cases)
+
+
+def test_hard_body_is_the_hard_suite_with_bodies_case_by_case() -> None:
+    """hard-body: every case of hard, and nothing else, with the body on; so the same halves and
+    a paired comparison (same seeds, placements, groups and tags)."""
+    hard, body = load_suite("hard"), load_suite("hard-body")
+    assert all(c.body for c in body.cases) and not any(c.body for c in hard.cases)
+    plain = [dataclasses.replace(c, body=False) for c in body.cases]
+    assert plain == list(hard.cases)
+    assert [half_of(c) for c in body.cases] == [half_of(c) for c in hard.cases]
+    assert [body.tags[c] for c in body.cases] == [hard.tags[c] for c in hard.cases]
