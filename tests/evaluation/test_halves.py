@@ -542,3 +542,14 @@ def test_hard_body_is_the_hard_suite_with_bodies_case_by_case() -> None:
     assert plain == list(hard.cases)
     assert [half_of(c) for c in body.cases] == [half_of(c) for c in hard.cases]
     assert [body.tags[c] for c in body.cases] == [hard.tags[c] for c in hard.cases]
+
+
+def test_sixth_check_set_brings_every_arm_in_with_a_body_at_placements_of_its_own() -> None:
+    """hard-fresh6: hard's scenes (and a 10 s hold) with the body on, at placements and seeds no
+    other suite uses, both hands, every situation on both halves."""
+    cases, others = _own_check_set("hard-fresh6", 88)
+    assert all(c.body and "/body/" in c.label for c in cases)
+    assert {c.scene for c in cases} == {c.scene for c in load_suite("hard").cases} | {"hold"}
+    for g in {c.group for c in cases}:
+        assert {c.hand for c in cases if c.group == g} == {"capsule", "anatomic"}
+    _every_group_on_both_halves(cases)
