@@ -81,6 +81,10 @@ def _add_eval(sub: argparse._SubParsersAction) -> None:
                         "of view (0.25-3; 1.5 turns the D435's 848x480 into 1272x720)")
     p.add_argument("--noise-scale", type=float, metavar="S",
                    help="with --suite: every camera's axial noise S times its own (0.25-4)")
+    p.add_argument("--body", action="store_true",
+                   help="with --suite: every arm goes on past the shoulder into a body that "
+                        "leaves the view (the suite's arms end at the shoulder unless it says "
+                        "otherwise; docs/simulator.md)")
     p.add_argument("--json", action="store_true", help="print the metrics as JSON")
     p.add_argument("--space", choices=("depth", "screen"), default="depth",
                    help="score --events by x, y (depth) or sx, sy (screen: fused cameras of "
@@ -105,9 +109,10 @@ def _add_eval(sub: argparse._SubParsersAction) -> None:
             if a.against:
                 from .evaluation.halves import print_compare
 
-                if a.fps is not None or a.resolution_scale is not None or a.noise_scale is not None:
+                if (a.fps is not None or a.resolution_scale is not None
+                        or a.noise_scale is not None or a.body):
                     raise ConfigError("--against runs the suite as it is; leave out --fps, "
-                                      "--resolution-scale and --noise-scale")
+                                      "--resolution-scale, --noise-scale and --body")
                 if a.by is not None:
                     raise ConfigError("--against compares the overall figures of each half; "
                                       "leave out --by")
@@ -120,7 +125,8 @@ def _add_eval(sub: argparse._SubParsersAction) -> None:
                                 workers=a.workers, cache=cache_root() if a.cache else None,
                                 as_json=a.json, progress=None if a.json else _print_case,
                                 fps=a.fps, resolution_scale=a.resolution_scale,
-                                noise_scale=a.noise_scale, by=a.by or "group", ci=a.ci)
+                                noise_scale=a.noise_scale, by=a.by or "group", ci=a.ci,
+                                body=a.body)
         if a.ci or a.against:
             flag = "--ci" if a.ci else "--against"
             raise ConfigError(f"{flag} needs --suite NAME --half H (intervals over a half's "
@@ -132,6 +138,9 @@ def _add_eval(sub: argparse._SubParsersAction) -> None:
                               "resolution)")
         if a.noise_scale is not None and not a.suite:
             raise ConfigError("--noise-scale needs --suite NAME (a recording has its own noise)")
+        if a.body and not a.suite:
+            raise ConfigError("--body needs --suite NAME (a recording has its own arms); render "
+                              "one with `depthtouch sim SCENE --body`")
         if a.gestures:
             from .evaluation.gestures import gestures_output
 
@@ -145,7 +154,7 @@ def _add_eval(sub: argparse._SubParsersAction) -> None:
                 a.suite, subset=a.subset, by=a.by or "scene", config=cfg, workers=a.workers,
                 cache=cache_root() if a.cache else None,
                 progress=None if a.json else _print_case, fps=a.fps,
-                resolution_scale=a.resolution_scale, noise_scale=a.noise_scale,
+                resolution_scale=a.resolution_scale, noise_scale=a.noise_scale, body=a.body,
             )
         else:
             metrics = eval_recording_command(a.recording, a.truth, events_path=a.events,

@@ -121,6 +121,17 @@ def test_a_suite_rendered_otherwise_keeps_its_cases_tags_and_halves(
         getattr(hard, method)(bad)
 
 
+def test_a_suite_with_bodies_is_hard_body_case_for_case() -> None:
+    """``--body``: the same cases, tags and halves with the body on; hard with bodies is the
+    committed hard-body set."""
+    hard = load_suite("hard")
+    assert hard.with_body(False) is hard
+    body = hard.with_body()
+    assert list(body.cases) == list(load_suite("hard-body").cases)
+    assert [half_of(c) for c in body.cases] == [half_of(c) for c in hard.cases]
+    assert body.select("far") == [dataclasses.replace(c, body=True) for c in hard.select("far")]
+
+
 def test_bad_half_is_a_config_error() -> None:
     with pytest.raises(ConfigError, match="use tune, held-out or all"):
         select_half([], "train")
@@ -246,6 +257,9 @@ def test_report_rows_pool_by_another_attribute_or_none() -> None:
     (["eval", "--noise-scale", "2", "x.npz"], "--noise-scale needs --suite NAME"),
     (["eval", "--suite", "hard", "--noise-scale", "9", "--half", "tune"],
      "noise scale 9.0 is out of range"),
+    (["eval", "--body", "x.npz"], "--body needs --suite NAME"),
+    (["eval", "--suite", "hard", "--half", "tune", "--against", "b.toml", "--body"],
+     "leave out --fps, --resolution-scale, --noise-scale and --body"),
     # bootstrap intervals and comparisons (evaluation/bootstrap.py)
     (["eval", "--suite", "hard", "--half", "tune", "--ci", "5"], "--ci 5 is out of range"),
     (["eval", "--suite", "hard", "--ci", "1000"], "--ci needs --suite NAME --half H"),

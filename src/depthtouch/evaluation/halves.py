@@ -198,16 +198,18 @@ def eval_halves_command(
     noise_scale: float | None = None,
     by: str = "group",
     ci: int = 0,
+    body: bool = False,
 ) -> dict[str, Any]:
     """``depthtouch eval --suite NAME --half tune|held-out|all``: :func:`halves_report`, its
     rows pooled ``by``, with ``ci`` bootstrap resamples for the intervals (0: none). ``fps``:
     every case rendered at this frame rate instead of the suite's; ``resolution_scale``: every
     camera at this many times its resolution; ``noise_scale``: every camera's axial noise times
-    this."""
+    this; ``body``: every arm goes on into a body that leaves the view."""
     check_group_key(by)  # before any case is rendered
     if ci:
         check_resamples(ci)
-    s = load_suite(suite).at_fps(fps).at_resolution(resolution_scale).at_noise(noise_scale)
+    s = (load_suite(suite).at_fps(fps).at_resolution(resolution_scale).at_noise(noise_scale)
+         .with_body(body))
     cases = _half_cases(s, subset, half)
     results = run_cases(cases, config, gate_mm=s.gate_mm, workers=workers or default_workers(),
                         cache=cache, progress=progress)
@@ -362,7 +364,8 @@ def print_halves(suite: str | Path, half: str, *, subset: str | None = None,
                  cache: Path | None = None, as_json: bool = False,
                  progress: Callable[[SuiteCase, EvalResult], None] | None = None,
                  fps: float | None = None, resolution_scale: float | None = None,
-                 noise_scale: float | None = None, by: str = "group", ci: int = 0) -> int:
+                 noise_scale: float | None = None, by: str = "group", ci: int = 0,
+                 body: bool = False) -> int:
     """The CLI's ``eval --suite NAME --half H [--by B] [--ci N]``: print the tables (or JSON);
     returns 0."""
     import json
@@ -371,7 +374,7 @@ def print_halves(suite: str | Path, half: str, *, subset: str | None = None,
     report = eval_halves_command(suite, half=half, subset=subset, config=config,
                                  workers=workers, cache=cache, progress=progress, fps=fps,
                                  resolution_scale=resolution_scale, noise_scale=noise_scale,
-                                 by=by, ci=ci)
+                                 by=by, ci=ci, body=body)
     if as_json:
         print(json.dumps(report, indent=1))
         return 0

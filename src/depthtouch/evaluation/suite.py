@@ -179,6 +179,11 @@ class Suite:
             raise ConfigError(f"noise scale {scale!r} is out of range; allowed [0.25, 4]")
         return self._with(noise_scale=float(scale))
 
+    def with_body(self, on: bool = True) -> Suite:
+        """The same cases with every arm going on into a body that leaves the view (``body``,
+        see :func:`depthtouch.sim.render_scene`; False: this suite). Halves stay the same."""
+        return self._with(body=True) if on else self
+
     def _with(self, **changes: Any) -> Suite:
         """Every case with these render settings changed; tags and order kept."""
         moved = {c: dataclasses.replace(c, **changes) for c in self.cases}
