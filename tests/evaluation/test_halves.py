@@ -121,14 +121,17 @@ def test_a_suite_rendered_otherwise_keeps_its_cases_tags_and_halves(
         getattr(hard, method)(bad)
 
 
-def test_a_suite_with_bodies_is_hard_body_case_for_case() -> None:
-    """``--body``: the same cases, tags and halves with the body on; hard with bodies is the
-    committed hard-body set."""
+def test_a_suite_with_bodies_is_the_same_suite_case_for_case() -> None:
+    """``--body`` (the hard suite with bodies, session 49): every case of hard, and nothing
+    else, with the body on; so the same halves and a paired comparison (same seeds,
+    placements, groups and tags)."""
     hard = load_suite("hard")
     assert hard.with_body(False) is hard
     body = hard.with_body()
-    assert list(body.cases) == list(load_suite("hard-body").cases)
+    assert all(c.body for c in body.cases) and not any(c.body for c in hard.cases)
+    assert [dataclasses.replace(c, body=False) for c in body.cases] == list(hard.cases)
     assert [half_of(c) for c in body.cases] == [half_of(c) for c in hard.cases]
+    assert [body.tags[c] for c in body.cases] == [hard.tags[c] for c in hard.cases]
     assert body.select("far") == [dataclasses.replace(c, body=True) for c in hard.select("far")]
 
 
@@ -545,17 +548,6 @@ def test_second_long_hold_check_set_holds_fingers_at_placements_of_its_own() -> 
     assert {c.pitch_deg for c in steep} == {50.0, 60.0}
     assert {c.camera for c in steep} == {"kinect-v2-hard", "realsense-d435-hard"}
     _every_group_on_both_halves(cases)
-
-
-def test_hard_body_is_the_hard_suite_with_bodies_case_by_case() -> None:
-    """hard-body: every case of hard, and nothing else, with the body on; so the same halves and
-    a paired comparison (same seeds, placements, groups and tags)."""
-    hard, body = load_suite("hard"), load_suite("hard-body")
-    assert all(c.body for c in body.cases) and not any(c.body for c in hard.cases)
-    plain = [dataclasses.replace(c, body=False) for c in body.cases]
-    assert plain == list(hard.cases)
-    assert [half_of(c) for c in body.cases] == [half_of(c) for c in hard.cases]
-    assert [body.tags[c] for c in body.cases] == [hard.tags[c] for c in hard.cases]
 
 
 def test_sixth_check_set_brings_every_arm_in_with_a_body_at_placements_of_its_own() -> None:
