@@ -124,6 +124,14 @@ class TrackingConfig:
         finger at stereo 0.8 m lifted 7 s into its hold); the 13 other sets' tune halves
         unchanged but one false touch's length, every held-out half unchanged
         (docs/accuracy.md section 7, session 43).
+    enclosed_low_share_min, enclosed_low_change_max_mm: the low band. A region whose share lies
+        above the first but not above ``enclosed_share_max`` (a patch of a resting forearm whose
+        ring the surface fills more than the hand does; fingers side by side share theirs less)
+        is asked too, and refused only where the heights around it changed by less than the
+        second over the window (a tighter limit than ``enclosed_change_max_mm``: a tap after a
+        hover at ToF 1.3-2 m changes its surroundings 2.4-7 mm). Needs the change condition
+        (``enclosed_change_max_mm`` above 0). Defaults 0.15 and 0 (off; ranges [0, 1] and
+        [0, 1000]).
     enclosed_flat_max_mm, enclosed_flat_attach_max_mm, enclosed_flat_height_max_mm: a forearm
         or palm laid onto the surface arrives as a finger does (the heights around its flank
         changed in the last seconds), so the enclosure test's change condition lets the
@@ -339,6 +347,8 @@ class TrackingConfig:
     enclosed_change_window_s: float = 2.0
     enclosed_pending_only: bool = True
     enclosed_cover_mm: float = 30.0
+    enclosed_low_share_min: float = 0.15
+    enclosed_low_change_max_mm: float = 0.0
     enclosed_flat_max_mm: float = 28.0
     enclosed_flat_attach_max_mm: float = 40.0
     enclosed_flat_height_max_mm: float = 8.0
@@ -407,6 +417,9 @@ class TrackingConfig:
         _range("tracking.enclosed_change_max_mm", self.enclosed_change_max_mm, 0.0, 1000.0)
         _range("tracking.enclosed_change_window_s", self.enclosed_change_window_s, 0.3, 10.0)
         _range("tracking.enclosed_cover_mm", self.enclosed_cover_mm, 0.0, 1000.0)
+        _range("tracking.enclosed_low_share_min", self.enclosed_low_share_min, 0.0, 1.0)
+        _range("tracking.enclosed_low_change_max_mm", self.enclosed_low_change_max_mm,
+               0.0, 1000.0)
         _range("tracking.enclosed_flat_max_mm", self.enclosed_flat_max_mm, 0.0, 100.0)
         _range("tracking.enclosed_flat_attach_max_mm", self.enclosed_flat_attach_max_mm,
                0.0, 10000.0)

@@ -75,8 +75,17 @@ def enclosure_asks(points: TouchPoints, config: TrackingConfig) -> np.ndarray | 
     share = points.attach_share
     if share is None or config.enclosed_share_max >= 1.0:
         return None
-    return ((share > config.enclosed_share_max)
+    return ((share > ask_share(config))
             & (points.height_mm >= config.enclosed_height_min_mm))
+
+
+def ask_share(config: TrackingConfig) -> float:
+    """The share above which the enclosure test asks about a point: ``enclosed_share_max``,
+    or ``enclosed_low_share_min`` below it where the low band is on (its change limit and the
+    change condition both set)."""
+    if config.enclosed_low_change_max_mm > 0.0 and config.enclosed_change_max_mm > 0.0:
+        return min(config.enclosed_share_max, config.enclosed_low_share_min)
+    return config.enclosed_share_max
 
 
 def refused_out(weights: list[float], refused: list[bool] | None) -> list[float]:
@@ -157,22 +166,27 @@ def evidence(points: TouchPoints, xy: list[XY], area_px: list[int], ok_new: list
         # (an unknown share, height or change, NaN, compares False: no evidence taken away)
         a_max = config.enclosed_attach_max_mm
         ah = ([math.nan] * n if attach_height_mm is None else attach_height_mm.tolist())
-        c_max = config.enclosed_change_max_mm
-        if c_max > 0.0:
-            ch = ([math.nan] * n if points.recent_change_mm is None
-                  else points.recent_change_mm.tolist())
-            still = [c < c_max for c in ch]
-        else:
-            still = [True] * n
+        c_max, low_c = config.enclosed_change_max_mm, config.enclosed_low_change_max_mm
+        ch = ([math.nan] * n if points.recent_change_mm is None
+              else points.recent_change_mm.tolist())
+        still = [c < c_max for c in ch] if c_max > 0.0 else [True] * n
+        # a point of the low band (asked about for a share of at most enclosed_share_max) is
+        # refused only where its change is under the low band's limit too
+        share_max = config.enclosed_share_max
+        shares = ([math.nan] * n if points.attach_share is None
+                  else points.attach_share.tolist())
+        low_still = [s > share_max or c < low_c for s, c in zip(shares, ch, strict=True)]
         # ... and, whatever moved, one lying low and level behind (a flank just laid down;
         # an unknown spread, NaN, compares False: not level)
         f_max = config.enclosed_flat_max_mm if back_spread_mm is not None else 0.0
         fa_max, fh_max = config.enclosed_flat_attach_max_mm, config.enclosed_flat_height_max_mm
         back = [math.nan] * n if back_spread_mm is None else back_spread_mm.tolist()
-        refused = [q and not s and ((st and not at >= a_max)
-                                    or (b < f_max and not at >= fa_max and not h >= fh_max))
-                   for q, at, st, s, b, h in zip(asks.tolist(), ah, still, steep, back,
-                                                 points.height_mm.tolist(), strict=True)]
+        refused = [q and lo and not s and ((st and not at >= a_max)
+                                           or (b < f_max and not at >= fa_max
+                                               and not h >= fh_max))
+                   for q, lo, at, st, s, b, h in zip(asks.tolist(), low_still, ah, still, steep,
+                                                     back, points.height_mm.tolist(),
+                                                     strict=True)]
     step = config.step_max_mm
     if attach_height_mm is not None and step > 0:
         # (an unknown height, NaN, compares False: no evidence taken away)
