@@ -9,6 +9,7 @@ from depthtouch.config import TouchPointConfig, TrackingConfig
 from depthtouch.tracking import assign as assign_mod
 from depthtouch.tracking import tracker as tracking
 from depthtouch.tracking.assign import gated_cost, gated_cost_array
+from depthtouch.tracking.evidence import enclosure_asks
 from depthtouch.tracking.tracker import Track, Tracker
 from depthtouch.types import TouchPoints
 
@@ -591,6 +592,43 @@ def test_a_held_finger_that_comes_to_lie_still_in_its_hand(pending_only: bool, e
     assert ("up" in states) == ends
     still = [s for f in run(Tracker(cfg, scale_mm_per_px=1.0), [tip(1.0)] * 13) for _, s in f]
     assert "down" not in still
+
+
+@pytest.mark.parametrize(("share", "change_mm", "low_change_mm", "goes_down"), [
+    (0.2, 2.0, 2.5, False),   # the low band: a still patch, its ring a fifth hand
+    (0.2, 3.0, 2.5, True),    # ... that changed more than the low limit (a tap after a hover)
+    (0.2, 2.0, 0.0, True),    # the low band off: asked about for a share above 0.25 only
+    (0.1, 2.0, 2.5, True),    # a fingertip at its finger's end: its hand at its back only
+    (0.4, 3.0, 2.5, False),   # above enclosed_share_max the change limit is 4 mm, as before
+    (0.2, np.nan, 2.5, True),  # an unknown change takes nothing away
+])
+def test_the_low_band_refuses_a_still_patch_with_a_tighter_change_limit(
+        share: float, change_mm: float, low_change_mm: float, goes_down: bool) -> None:
+    """enclosed_low_share_min / enclosed_low_change_max_mm: a region whose ring its hand fills
+    by a share in (0.15, 0.25] is refused where the heights around it changed by less than
+    2.5 mm; above 0.25 the limit stays enclosed_change_max_mm (4 mm)."""
+    tip = TouchPoints(np.array([[100.0, 100.0]]), np.array([4.0]), np.array([300]),
+                      np.array([[np.nan, np.nan]]), None, np.array([10]), np.array([30.0]),
+                      np.array([np.nan]), attach_share=np.array([share]),
+                      recent_change_mm=np.array([change_mm]))
+    cfg = TrackingConfig(down_frames=2, enclosed_share_max=0.25, enclosed_change_max_mm=4.0,
+                         enclosed_low_share_min=0.15, enclosed_low_change_max_mm=low_change_mm)
+    states = [s for f in run(Tracker(cfg, scale_mm_per_px=1.0), [tip] * 8) for _, s in f]
+    assert ("down" in states) == goes_down
+
+
+def test_the_low_band_asks_for_the_change_of_its_points_only_when_on() -> None:
+    """The pipeline measures the recent change for the points enclosure_asks names: with the
+    low band on, a share of 0.2 is among them; off, or without the change condition, not."""
+    pts = TouchPoints(np.array([[1.0, 1.0], [2.0, 2.0], [3.0, 3.0]]), np.array([4.0, 4.0, 4.0]),
+                      np.array([300, 300, 300]), np.full((3, 2), np.nan), None,
+                      np.array([10, 10, 10]), np.array([30.0, 30.0, 30.0]),
+                      attach_share=np.array([0.1, 0.2, 0.4]))
+    on = TrackingConfig(enclosed_low_change_max_mm=2.5)
+    assert enclosure_asks(pts, on).tolist() == [False, True, True]
+    assert enclosure_asks(pts, TrackingConfig()).tolist() == [False, False, True]
+    no_change = replace(on, enclosed_change_max_mm=0.0)
+    assert enclosure_asks(pts, no_change).tolist() == [False, False, True]
 
 
 @pytest.mark.parametrize(("share", "spread_mm", "attach_mm", "tip_mm", "flat_max_mm", "goes_down"), [
