@@ -81,6 +81,32 @@ def test_jump_beyond_gate_is_a_new_touch():
     assert sorted(out[0]) == [(1, "up"), (2, "down")]
 
 
+@pytest.mark.parametrize(("gate_down_mm", "down_keeps", "pending_keeps"), [
+    (0.0, False, False),    # one gate: a 50 mm turn beyond 40 mm is a new touch
+    (60.0, True, False),    # a contact that is down keeps its id; a pending one does not
+    (45.0, False, False),   # ... within the wider gate only
+])
+def test_a_contact_that_is_down_has_its_own_gate(gate_down_mm: float, down_keeps: bool,
+                                                 pending_keeps: bool) -> None:
+    """gate_down_mm: a down contact that turns sharply 50 mm (from its last point and its
+    prediction) keeps its id within the wider gate; a pending contact keeps gate_mm."""
+    cfg = _cfg(down_frames=2, up_frames=1, gate_mm=40, gate_down_mm=gate_down_mm)
+    # down at frame 1, still; then the point jumps 50 mm sideways (its prediction: in place)
+    out = run(Tracker(cfg, scale_mm_per_px=1.0),
+              [pts((100, 100, 5))] * 3 + [pts((100, 150, 5))])
+    assert (out[-1] == [(1, "move")]) is down_keeps
+    # pending (down after 3 frames), the same jump after its first: kept, it would go down
+    # on the third frame; a new pending contact at the new place needs a fourth
+    slow = replace(cfg, down_frames=3)
+    out = run(Tracker(slow, scale_mm_per_px=1.0),
+              [pts((100, 100, 5))] + [pts((100, 150, 5))] * 3)
+    assert [k for k, f in enumerate(out) if f] == ([2, 3] if pending_keeps else [3])
+    # no scale (gating in pixels): gate_down_mm does not apply
+    px = Tracker(_cfg(down_frames=2, up_frames=1, gate_px=25, gate_down_mm=gate_down_mm))
+    out = run(px, [pts((100, 100, 5))] * 3 + [pts((100, 130, 5))])
+    assert out[-1] != [(1, "move")]
+
+
 @pytest.mark.parametrize(
     "heights, expected_active",
     [

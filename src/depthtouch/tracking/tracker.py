@@ -170,8 +170,11 @@ class Tracker:
     def gate_down(self) -> float:
         """The gate of a contact that is down: grown in a stream slower than gate_fps when set
         (a drag moves farther between frames; a pending contact keeps :attr:`gate`, so that it
-        cannot take a point farther away than at gate_fps)."""
-        return self.gate * self._rate.gate
+        cannot take a point farther away than at gate_fps); ``gate_down_mm`` instead of
+        ``gate_mm`` when set and the scale is known."""
+        wide = self.config.gate_down_mm
+        base = wide if wide > 0.0 and self.scale_mm_per_px is not None else self.gate
+        return base * self._rate.gate
 
     @property
     def merge_near(self) -> float:
