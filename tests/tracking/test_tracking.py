@@ -652,7 +652,8 @@ def test_the_low_band_asks_for_the_change_of_its_points_only_when_on() -> None:
                       attach_share=np.array([0.1, 0.2, 0.4]))
     on = TrackingConfig(enclosed_low_change_max_mm=2.5)
     assert enclosure_asks(pts, on).tolist() == [False, True, True]
-    assert enclosure_asks(pts, TrackingConfig()).tolist() == [False, False, True]
+    off = replace(on, enclosed_low_change_max_mm=0.0)
+    assert enclosure_asks(pts, off).tolist() == [False, False, True]
     no_change = replace(on, enclosed_change_max_mm=0.0)
     assert enclosure_asks(pts, no_change).tolist() == [False, False, True]
 
