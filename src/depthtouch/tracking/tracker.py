@@ -45,7 +45,7 @@ import numpy as np
 
 from ..config import TouchPointConfig, TrackingConfig
 from ..types import TouchPoints, TouchState
-from .assign import assign, gated_cost, nearest_index
+from .assign import assign, gated_cost, nearest_index, speck_cost
 from .evidence import XY, evidence, refused_out, steep_tips
 from .framerate import FrameRate
 from .lift import CoreHistory, held_grace
@@ -215,6 +215,11 @@ class Tracker:
         groups: dict[int, list[int]] = {}
         if n_t and n_p:
             cost = gated_cost(tracks, pos, ok_cont, ok_new, self.gate, self.gate_down)
+            if self.config.speck_cost_mm > 0 and self.scale_mm_per_px is not None:
+                speck = [a <= self.config.speck_px for a in area]
+                if any(speck):
+                    cost = speck_cost(cost, [t.active for t in tracks], speck,
+                                      self.config.speck_cost_mm, self.gate_down)
             # Contacts that are down are served first, pending ones get what is left: optimal
             # assignment maximises the number of pairs, so in one joint assignment a noise blip
             # or a finger just arriving next to a contact could take the contact's point and
