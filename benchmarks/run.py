@@ -253,6 +253,18 @@ def _analysis(rows: list) -> list[str]:
         "session 47's code (bde74ad) run right after it on the same machine read "
         "0.661 ms (p95 1.231). After the review (the tracker's evidence weights in one method, "
         "no other change) 0.631 ms (p95 0.804), tracking 0.076 ms: the table above.",
+        "- Session 50 ran on another machine again (an Intel Xeon VM, Emerald Rapids at 2.1 "
+        "GHz): 640x480 with 5 touches 1.13 ms (p95 1.38) in `make bench`, the table above, and "
+        "the frame without touches 0.45 ms against 0.20 ms on the EPYC of sessions 44-49, while "
+        "OpenCV's reference pass below reads 0.640 ms against 0.621 (a 640x480 float32 copy "
+        "takes 0.074 ms here, OpenCV's 3x3 median of the uint16 frame 0.13 ms; why the "
+        "pipeline's stages run 2-2.6 times slower here was not looked into). The session's "
+        "change (the enclosure test's low band: the recent "
+        "change measured for points whose ring holds more than 15 % of their hand, not 25 %) "
+        "against session 49's code (8f3f7ac), `--quick` runs taking turns in the same hour: "
+        "1.248, 1.364 ms (session 49) and 1.357, 1.282 ms (session 50), within the spread "
+        "between runs. Over the 1.0 ms target on this machine, with either code; compare "
+        "runs on one machine only.",
         "- The fingertip kernel reads small windows of six per-pixel surface arrays that the "
         "full-frame passes (median, band) push out of the cache each frame: the same call takes "
         "about half the time on warm data. Memory, not arithmetic, is most of what is left.",
