@@ -81,61 +81,6 @@ def test_jump_beyond_gate_is_a_new_touch():
     assert sorted(out[0]) == [(1, "up"), (2, "down")]
 
 
-@pytest.mark.parametrize(("gate_down_mm", "down_keeps", "pending_keeps"), [
-    (0.0, False, False),    # one gate: a 50 mm turn beyond 40 mm is a new touch
-    (60.0, True, False),    # a contact that is down keeps its id; a pending one does not
-    (45.0, False, False),   # ... within the wider gate only
-])
-def test_a_contact_that_is_down_has_its_own_gate(gate_down_mm: float, down_keeps: bool,
-                                                 pending_keeps: bool) -> None:
-    """gate_down_mm: a down contact that turns sharply 50 mm (from its last point and its
-    prediction) keeps its id within the wider gate; a pending contact keeps gate_mm."""
-    cfg = _cfg(down_frames=2, up_frames=1, gate_mm=40, gate_down_mm=gate_down_mm)
-    # down at frame 1, still; then the point jumps 50 mm sideways (its prediction: in place)
-    out = run(Tracker(cfg, scale_mm_per_px=1.0),
-              [pts((100, 100, 5))] * 3 + [pts((100, 150, 5))])
-    assert (out[-1] == [(1, "move")]) is down_keeps
-    # pending (down after 3 frames), the same jump after its first: kept, it would go down
-    # on the third frame; a new pending contact at the new place needs a fourth
-    slow = replace(cfg, down_frames=3)
-    out = run(Tracker(slow, scale_mm_per_px=1.0),
-              [pts((100, 100, 5))] + [pts((100, 150, 5))] * 3)
-    assert [k for k, f in enumerate(out) if f] == ([2, 3] if pending_keeps else [3])
-    # no scale (gating in pixels): gate_down_mm does not apply
-    px = Tracker(_cfg(down_frames=2, up_frames=1, gate_px=25, gate_down_mm=gate_down_mm))
-    out = run(px, [pts((100, 100, 5))] * 3 + [pts((100, 130, 5))])
-    assert out[-1] != [(1, "move")]
-
-
-@pytest.mark.parametrize(("cost_mm", "takes"), [(0.0, "speck"), (20.0, "tip"), (40.0, "tip")])
-def test_a_contact_that_is_down_prefers_its_tip_to_a_speck(cost_mm: float, takes: str) -> None:
-    """speck_cost_mm: a contact moving 10 mm a frame meets a 9 px speck 4 mm from its
-    prediction and its own 50 px tip 12 mm away: without the cost it takes the speck and the
-    tip goes on under a new id; with it the contact keeps its tip."""
-    cfg = _cfg(down_frames=1, up_frames=1, gate_mm=40, speck_cost_mm=cost_mm, speck_px=9)
-    tr = Tracker(cfg, scale_mm_per_px=1.0)
-    for x in (100.0, 110.0, 120.0):
-        tr.update(pts((x, 100, 5)))
-    frame = TouchPoints(np.array([[130.0, 104.0], [130.0, 88.0]]), np.array([5.0, 5.0]),
-                        np.array([9, 50]), np.full((2, 2), np.nan))
-    ups = {u.track.id: u.track.xy_px for u in tr.update(frame) if u.measured}
-    assert ups[1] == ((130.0, 104.0) if takes == "speck" else (130.0, 88.0))
-
-
-def test_a_contact_that_is_down_takes_a_speck_only_within_its_gate_with_the_cost() -> None:
-    """speck_cost_mm: a speck 25 mm from the contact, its tip missing: taken without the cost
-    (within 40 mm), not with 20 mm more (45 > 40); a speck 5 mm away is taken either way."""
-    for cost_mm, dy, taken in ((0.0, 25.0, True), (20.0, 25.0, False), (20.0, 5.0, True)):
-        cfg = _cfg(down_frames=1, up_frames=2, gate_mm=40, speck_cost_mm=cost_mm, speck_px=9)
-        tr = Tracker(cfg, scale_mm_per_px=1.0)
-        tr.update(pts((100, 100, 5)))
-        tr.update(pts((100, 100, 5)))
-        speck = TouchPoints(np.array([[100.0, 100.0 + dy]]), np.array([5.0]), np.array([9]),
-                            np.full((1, 2), np.nan))
-        ups = [u for u in tr.update(speck) if u.measured and u.track.id == 1]
-        assert bool(ups) is taken
-
-
 @pytest.mark.parametrize(
     "heights, expected_active",
     [

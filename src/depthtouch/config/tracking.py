@@ -20,18 +20,6 @@ class TrackingConfig:
 
     gate_mm: largest jump between frames that keeps an id, when K is known (default 40).
     gate_px: the same when K is unknown (default 25).
-    gate_down_mm: the gate of a contact that is down, when K is known (0: ``gate_mm``). A
-        pending contact keeps ``gate_mm``. A fast drag that turns sharply steps 35-45 mm in
-        a frame at 30 fps (stereo 1 m, ToF 1.2 m at 25 deg), beyond 40 mm from both the
-        prediction and the last point, and comes back under a new id. Default 0; range
-        [0, 1000].
-    speck_px, speck_cost_mm: a contact that is down pays ``speck_cost_mm`` more for a point
-        whose region has at most ``speck_px`` pixels (the 3x3 opening's smallest, 9: a speck
-        of mixed pixels beside a fast finger), and may take it only if the sum lies within
-        its gate. A fast drag whose tip is missing for a frame jumped onto a speck 35 mm
-        aside, or preferred one 14 mm away to its own tip 27 mm away, and its tip came back
-        under a new id (ToF 1.15-1.2 m, 22-25 deg). Default 0 (off); ranges [0, 10000] px and
-        [0, 1000] mm.
     gate_fps: when set (e.g. 30), the frame rate gate_mm and gate_px are meant at. In a
         slower stream (from the frames' timestamps, more than 10 % slower) the gate of a
         contact that is down then grows with the frame interval: 80 mm at 15 fps, where a
@@ -406,16 +394,10 @@ class TrackingConfig:
     report_dir_weight: float = 0.2
     reference_fps: float = 0.0
     gate_fps: float = 0.0
-    gate_down_mm: float = 0.0
-    speck_px: float = 9.0
-    speck_cost_mm: float = 0.0
 
     def validate(self) -> None:
         _range("tracking.gate_mm", self.gate_mm, 0.0, 1000.0, lo_open=True)
         _range("tracking.gate_px", self.gate_px, 0.0, 1000.0, lo_open=True)
-        _range("tracking.gate_down_mm", self.gate_down_mm, 0.0, 1000.0)
-        _range("tracking.speck_px", self.speck_px, 0.0, 10000.0)
-        _range("tracking.speck_cost_mm", self.speck_cost_mm, 0.0, 1000.0)
         _range("tracking.down_frames", self.down_frames, 1, 30)
         _range("tracking.up_frames", self.up_frames, 1, 30)
         _range("tracking.up_held_frames", self.up_held_frames, 0, 300)

@@ -103,19 +103,3 @@ def gated_cost_array(tracks: Sequence[Track], pos: list[XY], ok_cont: list[bool]
     g = np.where(is_active, gate_down, gate)[:, None]
     cost: list[list[float]] = np.where(allowed & (dist <= g), dist, BIG).tolist()
     return cost
-
-
-def speck_cost(cost: list[list[float]], active: list[bool], speck: list[bool], extra: float,
-               gate_down: float) -> list[list[float]]:
-    """``cost`` with ``extra`` added where a contact that is down (``active``) would take a
-    speck (``speck``: a region of the opening's smallest size), and BIG where the sum lies
-    beyond ``gate_down``: a fast drag whose tip is missing for a frame must not jump onto a
-    speck beside it, nor prefer one to its own tip a little farther. The rows of pending
-    contacts are kept as they are; ``cost`` is not changed (a new matrix)."""
-    out = []
-    for row, act in zip(cost, active, strict=True):
-        if act:
-            row = [BIG if v >= BIG or (s and v + extra > gate_down) else v + extra if s else v
-                   for v, s in zip(row, speck, strict=True)]
-        out.append(row)
-    return out

@@ -45,7 +45,7 @@ import numpy as np
 
 from ..config import TouchPointConfig, TrackingConfig
 from ..types import TouchPoints, TouchState
-from .assign import assign, gated_cost, nearest_index, speck_cost
+from .assign import assign, gated_cost, nearest_index
 from .evidence import XY, evidence, refused_out, steep_tips
 from .framerate import FrameRate
 from .lift import CoreHistory, held_grace
@@ -170,11 +170,8 @@ class Tracker:
     def gate_down(self) -> float:
         """The gate of a contact that is down: grown in a stream slower than gate_fps when set
         (a drag moves farther between frames; a pending contact keeps :attr:`gate`, so that it
-        cannot take a point farther away than at gate_fps); ``gate_down_mm`` instead of
-        ``gate_mm`` when set and the scale is known."""
-        wide = self.config.gate_down_mm
-        base = wide if wide > 0.0 and self.scale_mm_per_px is not None else self.gate
-        return base * self._rate.gate
+        cannot take a point farther away than at gate_fps)."""
+        return self.gate * self._rate.gate
 
     @property
     def merge_near(self) -> float:
@@ -215,11 +212,6 @@ class Tracker:
         groups: dict[int, list[int]] = {}
         if n_t and n_p:
             cost = gated_cost(tracks, pos, ok_cont, ok_new, self.gate, self.gate_down)
-            if self.config.speck_cost_mm > 0 and self.scale_mm_per_px is not None:
-                speck = [a <= self.config.speck_px for a in area]
-                if any(speck):
-                    cost = speck_cost(cost, [t.active for t in tracks], speck,
-                                      self.config.speck_cost_mm, self.gate_down)
             # Contacts that are down are served first, pending ones get what is left: optimal
             # assignment maximises the number of pairs, so in one joint assignment a noise blip
             # or a finger just arriving next to a contact could take the contact's point and
