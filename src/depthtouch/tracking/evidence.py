@@ -116,9 +116,10 @@ def evidence(points: TouchPoints, xy: list[XY], area_px: list[int], ok_new: list
     whose hand surrounds it (``enclosed_share_max``: a patch of a resting palm or forearm
     whose top flickers in and out of the band; with ``enclosed_change_max_mm``, only where
     nothing around it moved in the last seconds, or where it lies low and level behind:
-    ``enclosed_flat_*``, the flank of a forearm just laid down), and so does one whose
-    attached hand pixels lie higher than ``step_max_mm`` (a finger rises from the band
-    gradually; mixed pixels at the side of a raised hand jump), and so does one with level
+    ``enclosed_flat_*``, the flank of a forearm just laid down; with ``enclosed_low_*``, also
+    one whose share lies a little lower, where its surroundings changed even less), and so
+    does one whose attached hand pixels lie higher than ``step_max_mm`` (a finger rises from
+    the band gradually; mixed pixels at the side of a raised hand jump), and so does one with level
     heights behind it (``flat_max_mm``: the top of a held book, the flank of a forearm; a
     finger rises and is narrow), and so does a point on the axis of another point low
     enough to go down, behind it (``behind_lat_mm``: a finger has one tip; what lies behind
