@@ -75,11 +75,11 @@ def enclosure_asks(points: TouchPoints, config: TrackingConfig) -> np.ndarray | 
     share = points.attach_share
     if share is None or config.enclosed_share_max >= 1.0:
         return None
-    return ((share > ask_share(config))
+    return ((share > _ask_share(config))
             & (points.height_mm >= config.enclosed_height_min_mm))
 
 
-def ask_share(config: TrackingConfig) -> float:
+def _ask_share(config: TrackingConfig) -> float:
     """The share above which the enclosure test asks about a point: ``enclosed_share_max``,
     or ``enclosed_low_share_min`` below it where the low band is on (its change limit and the
     change condition both set)."""
@@ -174,9 +174,10 @@ def evidence(points: TouchPoints, xy: list[XY], area_px: list[int], ok_new: list
         # a point of the low band (asked about for a share of at most enclosed_share_max) is
         # refused only where its change is under the low band's limit too
         share_max = config.enclosed_share_max
-        shares = ([math.nan] * n if points.attach_share is None
-                  else points.attach_share.tolist())
-        low_still = [s > share_max or c < low_c for s, c in zip(shares, ch, strict=True)]
+        low_still = [True] * n
+        if _ask_share(config) < share_max and points.attach_share is not None:
+            low_still = [s > share_max or c < low_c
+                         for s, c in zip(points.attach_share.tolist(), ch, strict=True)]
         # ... and, whatever moved, one lying low and level behind (a flank just laid down;
         # an unknown spread, NaN, compares False: not level)
         f_max = config.enclosed_flat_max_mm if back_spread_mm is not None else 0.0
