@@ -72,7 +72,7 @@ def gated_cost(tracks: Sequence[Track], pos: list[XY], ok_cont: list[bool], ok_n
         # position, is beyond the gate: the margin keeps that exact through the rounding
         far = g * (1.0 + 1e-6)
         lx, ly = t.pos
-        k = 1 + t.missing
+        k = t.since
         px, py = lx + t.vel[0] * k, ly + t.vel[1] * k
         row: list[float] = []
         for (x, y), ok in zip(pos, ok_cont if t.active else ok_new, strict=True):
@@ -93,7 +93,7 @@ def gated_cost_array(tracks: Sequence[Track], pos: list[XY], ok_cont: list[bool]
                      ok_new: list[bool], gate: float, gate_down: float) -> list[list[float]]:
     """:func:`gated_cost` in array operations: the same numbers, faster for many touches."""
     last = np.array([t.pos for t in tracks])
-    pred = last + np.array([(t.vel[0] * (1 + t.missing), t.vel[1] * (1 + t.missing))
+    pred = last + np.array([(t.vel[0] * t.since, t.vel[1] * t.since)
                             for t in tracks])
     p = np.array(pos)
     dp, dl = pred[:, None, :] - p[None, :, :], last[:, None, :] - p[None, :, :]

@@ -23,6 +23,9 @@ _INTERVALS = 15
 # within this share of the reference interval, frames count as reference frames (timestamps
 # in whole ms at 30 fps give 33 and 34 ms)
 _SAME_RATE = 0.1
+#: the most frame intervals one frame's step counts (a stream that stopped for longer than
+#: this has no motion to extrapolate: a contact is predicted where this many frames take it)
+STEP_MAX = 4
 
 
 class FrameRate:
@@ -37,6 +40,12 @@ class FrameRate:
     (else 1): in a slower stream a finger moves farther between frames, and the tracker's gate
     grows by this factor.
 
+    ``step``: how many of the stream's own frame intervals (the median) lie between this
+    frame and the one before, rounded, from 1 to :data:`STEP_MAX`: 1 in an even stream, 2
+    after a frame the camera dropped (a busy USB bus), whatever the settings above. The
+    tracker's motion model counts these instead of frames, so that a drag keeps its id across
+    a dropped frame (docs/accuracy.md section 7, session 51).
+
     A slower stream's frames count as one each, not more: noise comes frame by frame, and a
     speck seen in three frames at 15 fps is as unlikely as one seen in three at 30 fps. At 15
     fps, counting frames by their length raised the hard suite's false touches on its tune
@@ -50,22 +59,29 @@ class FrameRate:
         self._last: float | None = None
         self.frame = 1.0
         self.gate = 1.0
+        self.step = 1.0
 
     def reset(self) -> None:
         self._dt.clear()
         self._last = None
         self.frame = 1.0
         self.gate = 1.0
+        self.step = 1.0
 
     def update(self, t_s: float | None) -> float:
-        if t_s is None or not math.isfinite(t_s) or (self.reference_fps <= 0
-                                                      and self.gate_fps <= 0):
+        self.step = 1.0
+        if t_s is None or not math.isfinite(t_s):
             return self.frame
         last, self._last = self._last, t_s
         if last is None or t_s <= last:  # the first frame, a repeated or a reordered timestamp
             return self.frame
-        self._dt.append(t_s - last)
+        gap = t_s - last
+        self._dt.append(gap)
         dt = median(self._dt)
+        if gap > 1.5 * dt:
+            self.step = float(min(STEP_MAX, round(gap / dt)))
+        if self.reference_fps <= 0 and self.gate_fps <= 0:
+            return self.frame
         k = dt * self.reference_fps
         self.frame = 1.0 if k <= 0.0 or k >= 1.0 - _SAME_RATE else k
         g = dt * self.gate_fps

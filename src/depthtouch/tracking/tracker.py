@@ -62,7 +62,7 @@ class Track:
 
     Positions are pairs of plain floats: a frame updates a handful of tracks, and a numpy call on
     a 2-vector costs as much as twenty float operations. xy_px: image px; pos: xy_px times the
-    tracker's scale (mm when known); vel: per frame, in the units of pos. report_px: where the
+    tracker's scale (mm when known); vel: per frame interval, in the units of pos. report_px: where the
     contact is reported, xy_px plus its point's offset (TouchPoints.offset_px).
     """
 
@@ -85,14 +85,18 @@ class Track:
     core: CoreHistory | None = None  # its finger's core heights (TrackingConfig.lift_core_mm)
     still_at: XY = (math.nan, math.nan)  # where its point's still run began (pos units)
     still_n: int = 0  # frames in a row its point stayed near still_at
+    # the stream's frame intervals since its point was last seen, this frame's included (1 +
+    # missing in an even stream; a frame the camera dropped adds one: FrameRate.step)
+    since: float = 0.0
 
     @property
     def report_px(self) -> XY:
         return (self.xy_px[0] + self.offset_px[0], self.xy_px[1] + self.offset_px[1])
 
     def predicted(self) -> XY:
-        """Where the contact should be this frame (constant velocity per frame)."""
-        k = 1 + self.missing
+        """Where the contact should be this frame (constant velocity per frame interval, over
+        the intervals since it was last seen)."""
+        k = self.since
         return (self.pos[0] + self.vel[0] * k, self.pos[1] + self.vel[1] * k)
 
 
@@ -184,6 +188,9 @@ class Tracker:
         counts it as a frame at ``reference_fps``); returns the reported tracks."""
         frame = self._rate.update(t_s)
         tracks = self.tracks
+        step = self._rate.step
+        for t in tracks:
+            t.since += step
         n_t, n_p = len(tracks), len(points)
         if not n_t and not n_p:
             return []
@@ -211,7 +218,10 @@ class Tracker:
         matched_t: dict[int, int] = {}
         groups: dict[int, list[int]] = {}
         if n_t and n_p:
-            cost = gated_cost(tracks, pos, ok_cont, ok_new, self.gate, self.gate_down)
+            # the gates are the largest jumps in one frame interval: over a frame the camera
+            # dropped, a finger moves as far again
+            cost = gated_cost(tracks, pos, ok_cont, ok_new, self.gate * step,
+                              self.gate_down * step)
             # Contacts that are down are served first, pending ones get what is left: optimal
             # assignment maximises the number of pairs, so in one joint assignment a noise blip
             # or a finger just arriving next to a contact could take the contact's point and
@@ -260,7 +270,7 @@ class Tracker:
                 # fingertips side by side in one region: its point is where they are together;
                 # each keeps its place in the pair and moves with it (no id jumps to the other)
                 k, (sx, sy) = shift[i]
-                m = 1 + t.missing
+                m = t.since
                 (vx, vy), (ox, oy) = t.vel, t.pos
                 t.vel = (0.5 * vx + 0.5 * (sx / m), 0.5 * vy + 0.5 * (sy / m))
                 px, py = ox + sx, oy + sy
@@ -271,6 +281,7 @@ class Tracker:
                 t.hand_at_border = border[k]
                 t.seen += 1
                 t.missing = 0
+                t.since = 0.0
                 t.merged += 1
                 out.append(TrackUpdate(t, "move", True))
                 keep.append(t)
@@ -311,7 +322,7 @@ class Tracker:
                         keep.append(t)
                         continue
                     w_j = 0.0  # a pending contact whose core rose: not a touch this frame
-                m = 1 + t.missing
+                m = t.since
                 (vx, vy), (ox, oy), (px, py) = t.vel, t.pos, pos[j]
                 if (not t.active and slide_mm > 0 and ath[j] > slide_ath_mm
                         and math.hypot(px - ox, py - oy) > slide_mm * m):
@@ -327,6 +338,7 @@ class Tracker:
                 t.seen += 1
                 t.gaps += t.active and t.missing > 0
                 t.missing = 0
+                t.since = 0.0
                 t.merged = 0
                 t.evidence += w_j
                 t.doubt = t.doubt + 1 if w_j <= 0.0 else 0
