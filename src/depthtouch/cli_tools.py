@@ -85,6 +85,10 @@ def _add_eval(sub: argparse._SubParsersAction) -> None:
                    help="with --suite: every arm goes on past the shoulder into a body that "
                         "leaves the view (the suite's arms end at the shoulder unless it says "
                         "otherwise; docs/simulator.md)")
+    p.add_argument("--drop-rate", type=float, metavar="P",
+                   help="with --suite: frames the camera never delivers, as a busy USB bus "
+                        "drops them: after a kept frame the next is lost with chance P (0-0.2), "
+                        "in bursts of 1.4 on average (docs/simulator.md)")
     p.add_argument("--json", action="store_true", help="print the metrics as JSON")
     p.add_argument("--space", choices=("depth", "screen"), default="depth",
                    help="score --events by x, y (depth) or sx, sy (screen: fused cameras of "
@@ -110,9 +114,10 @@ def _add_eval(sub: argparse._SubParsersAction) -> None:
                 from .evaluation.halves import print_compare
 
                 if (a.fps is not None or a.resolution_scale is not None
-                        or a.noise_scale is not None or a.body):
+                        or a.noise_scale is not None or a.body or a.drop_rate is not None):
                     raise ConfigError("--against runs the suite as it is; leave out --fps, "
-                                      "--resolution-scale, --noise-scale and --body")
+                                      "--resolution-scale, --noise-scale, --body and "
+                                      "--drop-rate")
                 if a.by is not None:
                     raise ConfigError("--against compares the overall figures of each half; "
                                       "leave out --by")
@@ -126,7 +131,7 @@ def _add_eval(sub: argparse._SubParsersAction) -> None:
                                 as_json=a.json, progress=None if a.json else _print_case,
                                 fps=a.fps, resolution_scale=a.resolution_scale,
                                 noise_scale=a.noise_scale, by=a.by or "group", ci=a.ci,
-                                body=a.body)
+                                body=a.body, drop_rate=a.drop_rate)
         if a.ci or a.against:
             flag = "--ci" if a.ci else "--against"
             raise ConfigError(f"{flag} needs --suite NAME --half H (intervals over a half's "
@@ -141,6 +146,9 @@ def _add_eval(sub: argparse._SubParsersAction) -> None:
         if a.body and not a.suite:
             raise ConfigError("--body needs --suite NAME (a recording has its own arms); render "
                               "one with `depthtouch sim SCENE --body`")
+        if a.drop_rate is not None and not a.suite:
+            raise ConfigError("--drop-rate needs --suite NAME (a recording has the frames it "
+                              "has); render one with `depthtouch sim SCENE --drop-rate P`")
         if a.gestures:
             from .evaluation.gestures import gestures_output
 
@@ -155,6 +163,7 @@ def _add_eval(sub: argparse._SubParsersAction) -> None:
                 cache=cache_root() if a.cache else None,
                 progress=None if a.json else _print_case, fps=a.fps,
                 resolution_scale=a.resolution_scale, noise_scale=a.noise_scale, body=a.body,
+                drop_rate=a.drop_rate,
             )
         else:
             metrics = eval_recording_command(a.recording, a.truth, events_path=a.events,
@@ -316,6 +325,10 @@ def _add_sim(sub: argparse._SubParsersAction) -> None:
                    help="arms go on past the shoulder into a body that leaves the view, as a "
                         "person's do (without: the arm ends at the shoulder, seen whole from "
                         "about 1.3 m)")
+    p.add_argument("--drop-rate", type=float, default=0.0, metavar="P",
+                   help="frames the camera never delivers [0, 0.2]: after a kept frame the "
+                        "next is lost with chance P, in bursts of 1.4 on average; the rest keep "
+                        "their timestamps and the truth is numbered over them")
     p.add_argument("--no-noise", action="store_true", help="exact geometry, no sensor noise")
     p.add_argument("--views", type=int, metavar="N",
                    help="N cameras (2-3) 0.8 m apart: --out is a folder of viewK.npz, "
@@ -340,6 +353,8 @@ def _add_sim(sub: argparse._SubParsersAction) -> None:
             raise ConfigError("--skin-noise applies to one camera; leave it out with --views")
         if a.views is not None and a.body:
             raise ConfigError("--body applies to one camera; leave it out with --views")
+        if a.views is not None and a.drop_rate != 0.0:
+            raise ConfigError("--drop-rate applies to one camera; leave it out with --views")
         if a.views is not None:
             from .sim.multiview import default_poses, render_views, write_views
 
@@ -356,6 +371,7 @@ def _add_sim(sub: argparse._SubParsersAction) -> None:
             surface=a.surface, seed=a.seed, fps=a.fps, noise=not a.no_noise, hand=a.hand,
             resolution_scale=a.resolution_scale, pitch_deg=a.pitch, noise_scale=a.noise_scale,
             motion_ms=a.motion_ms, skin_noise=a.skin_noise, body=a.body,
+            drop_rate=a.drop_rate,
         )
         write_recording(rec, a.out, a.truth)
         if not a.quiet:

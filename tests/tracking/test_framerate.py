@@ -104,3 +104,51 @@ def test_gate_grows_in_a_slower_stream(fps: float, gate_fps: float, same_id: boo
 def test_gate_fps_is_validated():
     with pytest.raises(ConfigError, match="gate_fps"):
         TrackingConfig(gate_fps=-3.0).validate()
+
+
+def test_step_counts_the_intervals_since_the_last_frame_whatever_the_settings():
+    for ref, gate in ((0.0, 0.0), (30.0, 0.0), (0.0, 30.0)):
+        r = FrameRate(ref, gate)
+        r.update(None)
+        assert r.step == 1.0  # no timestamp: one interval
+        for i in range(10):  # an even stream, timestamps in whole ms
+            r.update(round(i / 30.0, 3))
+            assert r.step == 1.0
+        t = round(9 / 30.0, 3)
+        r.update(t + 2 / 30.0)  # one frame dropped
+        assert r.step == 2.0
+        r.update(t + 5 / 30.0)  # two dropped
+        assert r.step == 3.0
+        r.update(t + 5 / 30.0)  # a repeated timestamp: one interval
+        assert r.step == 1.0
+        r.update(t + 5 / 30.0 + 2.0)  # the stream stopped for 2 s: at most STEP_MAX
+        assert r.step == 4.0
+        r.update(t + 5 / 30.0 + 2.0 + 1 / 30.0)
+        assert r.step == 1.0
+        r.reset()
+        assert r.step == 1.0
+
+
+def test_a_drag_keeps_its_id_across_dropped_frames():
+    # 30 mm per frame at 1 mm/px against the default 40 mm gate; frames 6 and 7 are dropped
+    # (the camera never delivered them): the finger moves 90 mm between two frames
+    kept = [i for i in range(14) if i not in (6, 7)]
+    for t_of in (lambda i: i / 30.0, lambda i: None):
+        tr = Tracker(TrackingConfig(weak_evidence=1.0, down_frames=1), scale_mm_per_px=1.0)
+        ids = set()
+        for i in kept:
+            ids.update(u.track.id for u in tr.update(pts((100.0 + 30 * i, 50.0, 5.0)), t_of(i)))
+        # with timestamps the gap is seen and the id kept; without them it is not
+        assert (ids == {1}) == (t_of(0) is not None)
+
+
+def test_the_prediction_spans_the_dropped_frames():
+    # a drag at 30 mm per frame with a neighbour 60 mm ahead of where it was: after one
+    # dropped frame the drag's own point (at +60) is the nearest to its prediction, not the one
+    # a frame's step away
+    tr = Tracker(TrackingConfig(weak_evidence=1.0, down_frames=1), scale_mm_per_px=1.0)
+    for i in range(5):
+        tr.update(pts((100.0 + 30 * i, 50.0, 5.0)), i / 30.0)
+    (u,) = tr.update(pts((100.0 + 30 * 6, 50.0, 5.0)), 6 / 30.0)
+    assert u.track.id == 1 and u.state == "move"
+    assert u.track.since == 0.0

@@ -71,6 +71,7 @@ class SuiteCase:
     skin_noise: the temporal noise of what stands on the surface times this, and the noise's
     growth with the incidence angle (1: none), see ``render_scene``.
     body: arms go on past the shoulder into a body that leaves the view, see ``render_scene``.
+    drop_rate: frames the camera never delivers (0: none), see ``render_scene``.
     """
 
     scene: str
@@ -88,6 +89,7 @@ class SuiteCase:
     motion_ms: float = 0.0
     skin_noise: float = 1.0
     body: bool = False
+    drop_rate: float = 0.0
 
     @property
     def label(self) -> str:
@@ -100,8 +102,9 @@ class SuiteCase:
         motion = "" if self.motion_ms == 0.0 else f"/motion{self.motion_ms:g}"
         skin = "" if self.skin_noise == 1.0 else f"/skin{self.skin_noise:g}"
         body = "/body" if self.body else ""
+        drop = "" if self.drop_rate == 0.0 else f"/drop{self.drop_rate:g}"
         return (f"{self.scene}/{self.camera}{res}/{self.distance_m:g}m{surf}{tilt}{hand}"
-                f"{pitch}{noise}{motion}{skin}{body}/s{self.seed}")
+                f"{pitch}{noise}{motion}{skin}{body}{drop}/s{self.seed}")
 
     def render_kwargs(self) -> dict[str, Any]:
         kw: dict[str, Any] = {"camera": self.camera, "distance_m": self.distance_m,
@@ -121,6 +124,8 @@ class SuiteCase:
             kw["skin_noise"] = self.skin_noise
         if self.body:  # (absent without: the cache keys stay as they were)
             kw["body"] = True
+        if self.drop_rate != 0.0:  # (absent at 0: the cache keys stay as they were)
+            kw["drop_rate"] = self.drop_rate
         return kw
 
     def cache_key(self) -> str:
@@ -183,6 +188,15 @@ class Suite:
         """The same cases with every arm going on into a body that leaves the view (``body``,
         see :func:`depthtouch.sim.render_scene`; False: this suite). Halves stay the same."""
         return self._with(body=True) if on else self
+
+    def with_drops(self, rate: float | None) -> Suite:
+        """The same cases with frames the camera never delivers (``drop_rate``, see
+        :func:`depthtouch.sim.render_scene`, [0, 0.2]; None: this suite). Halves stay the same."""
+        if rate is None:
+            return self
+        from ..sim.drops import check_drop_rate
+
+        return self._with(drop_rate=check_drop_rate(rate))
 
     def _with(self, **changes: Any) -> Suite:
         """Every case with these render settings changed; tags and order kept."""
@@ -262,7 +276,8 @@ def suite_from_dict(data: dict[str, Any], where: str = "suite") -> Suite:
         gname = str(g.get("name", f"group{i}"))
         gw = f"{where}: group {gname}"
         known = {"name", "scenes", "cameras", "distances_m", "surfaces", "tilts_deg", "seeds",
-                 "fps", "tags", "hands", "pitches_deg", "motion_ms", "skin_noise", "body"}
+                 "fps", "tags", "hands", "pitches_deg", "motion_ms", "skin_noise", "body",
+                 "drop_rate"}
         unknown = sorted(set(g) - known)
         if unknown:
             raise ConfigError(
@@ -284,6 +299,7 @@ def suite_from_dict(data: dict[str, Any], where: str = "suite") -> Suite:
         fps = _numbers([g.get("fps", 30.0)], "fps", gw, 1.0, 1000.0)[0]
         motion = _numbers([g.get("motion_ms", 0.0)], "motion_ms", gw, 0.0, 50.0)[0]
         skin = _numbers([g.get("skin_noise", 1.0)], "skin_noise", gw, 1.0, 4.0)[0]
+        drop = _numbers([g.get("drop_rate", 0.0)], "drop_rate", gw, 0.0, 0.2)[0]
         body = g.get("body", False)
         if not isinstance(body, bool):
             raise ConfigError(f"{gw}: body = {body!r} must be true or false")
@@ -298,7 +314,7 @@ def suite_from_dict(data: dict[str, Any], where: str = "suite") -> Suite:
                                                                          seeds):
                             c = SuiteCase(s, cam, d, surf, tilt, int(seed), fps, gname, hand,
                                           pitch_deg=pitch, motion_ms=motion,
-                                          skin_noise=skin, body=body)
+                                          skin_noise=skin, body=body, drop_rate=drop)
                             key = dataclasses.replace(c, group="")
                             cases.setdefault(key, (c, set()))[1].update(tags)
     ordered = [c for c, _ in cases.values()]

@@ -245,6 +245,7 @@ def eval_suite_command(
     resolution_scale: float | None = None,
     noise_scale: float | None = None,
     body: bool = False,
+    drop_rate: float | None = None,
 ) -> dict[str, Metrics]:
     """``depthtouch eval --suite NAME``: metrics pooled by ``by``, plus ``all`` at the end.
 
@@ -253,10 +254,11 @@ def eval_suite_command(
     resolution_scale: every camera at this many times its resolution (None: its own).
     noise_scale: every camera's axial noise times this (None: its own).
     body: every arm goes on into a body that leaves the view (``render_scene(body=True)``).
+    drop_rate: frames the camera never delivers (``render_scene(drop_rate=)``; None: none).
     """
     check_group_key(by)  # before any case is rendered
     s = (load_suite(suite).at_fps(fps).at_resolution(resolution_scale).at_noise(noise_scale)
-         .with_body(body))
+         .with_body(body).with_drops(drop_rate))
     cases = s.select(subset)
     results = run_cases(cases, config, gate_mm=s.gate_mm, workers=workers or default_workers(),
                         cache=cache, progress=progress)

@@ -19,6 +19,7 @@ from ..errors import ConfigError, SourceError
 from ..files import write_text_atomic
 from .artefacts import exposure_mix
 from .cameras import NoiseModel, get_profile, scaled_profile
+from .drops import check_drop_rate, drop_frames
 from .geometry import Primitive, Rays, Surface, make_surface, render_primitives, rotation_xyz
 from .hand import FINGERS, HAND_STYLES, build_hand
 from .scenes import HOVER_MAX_MM, SceneContext, Script, build_script
@@ -113,6 +114,7 @@ def render_scene(
     motion_ms: float = 0.0,
     skin_noise: float = 1.0,
     body: bool = False,
+    drop_rate: float = 0.0,
 ) -> SimRecording:
     """Render ``scene`` (see :data:`~depthtouch.sim.SCENES`) as seen by ``camera``.
 
@@ -149,6 +151,11 @@ def render_scene(
     capsule parallel to the surface, :func:`~depthtouch.sim.hand.body_capsule`), as a person
     does; without it (default) the arm ends at the shoulder, and a camera from about 1.3 m
     sees it whole. Every random draw stays as it was.
+    drop_rate: frames the camera never delivers, [0, 0.2] (default 0: none): after a frame
+    that remains, the next is dropped with this chance, and a dropped frame takes the next with
+    it with chance 0.3 (:mod:`~depthtouch.sim.drops`); the remaining frames keep their
+    timestamps, and the truth is numbered again over them. The frames that remain are exactly
+    those rendered without it.
     Unknown names or out-of-range values raise ConfigError naming the valid ones.
     """
     if not (isinstance(resolution_scale, (int, float)) and 0.25 <= resolution_scale <= 3.0):
@@ -172,6 +179,7 @@ def render_scene(
         raise ConfigError(f"pitch_deg {pitch_deg!r} is out of range; allowed [{lo:g}, {hi:g}] deg")
     if not isinstance(body, bool):
         raise ConfigError(f"body {body!r} must be true or false")
+    drop_rate = check_drop_rate(drop_rate)
     if hand not in HAND_STYLES:
         raise ConfigError(f"unknown hand {hand!r}; use one of {', '.join(HAND_STYLES)}")
     rays = Rays(profile.K, profile.resolution_wh)
@@ -224,8 +232,9 @@ def render_scene(
             labels_out[i] = labels
     doc = _truth_doc(scene, seed, profile.name, rays, fps, world_surface, distance_m, tilt_deg,
                      script, truth, n if first_busy is None else first_busy)
-    return SimRecording(depth, np.arange(n, dtype=np.float64) / fps, 0.001, rays.K.copy(), doc,
-                        labels_out)
+    rec = SimRecording(depth, np.arange(n, dtype=np.float64) / fps, 0.001, rays.K.copy(), doc,
+                       labels_out)
+    return drop_frames(rec, drop_rate, seed) if drop_rate > 0 else rec
 
 
 _SUB_EXPOSURES = 4

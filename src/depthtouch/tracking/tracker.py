@@ -2,7 +2,11 @@
 
 Touch points are matched to tracks by optimal assignment on their distance (:mod:`.assign`),
 gated (mm when the surface scale is known, px otherwise): contacts that are down first, then
-pending ones on the points left. Fingertips side by side whose regions merged into one
+pending ones on the points left. The distance is to where a contact was or to where its
+velocity takes it over the stream's frame intervals since it was last seen; the intervals are
+counted from the frames' timestamps (:attr:`.framerate.FrameRate.step`), so that over a frame
+the camera dropped a drag is predicted twice as far and the gates grow as much (an even stream,
+or one without timestamps, counts one interval a frame). Fingertips side by side whose regions merged into one
 point (a region about twice a tip's area) keep their ids and move with that point, each at its
 place in the pair; a contact hidden in a neighbour's region is held. A new contact goes
 ``down`` once its evidence reaches ``down_frames``: frames, each counting 1 when its region has
@@ -188,9 +192,9 @@ class Tracker:
         counts it as a frame at ``reference_fps``); returns the reported tracks."""
         frame = self._rate.update(t_s)
         tracks = self.tracks
-        step = self._rate.step
+        intervals = self._rate.step
         for t in tracks:
-            t.since += step
+            t.since += intervals
         n_t, n_p = len(tracks), len(points)
         if not n_t and not n_p:
             return []
@@ -220,8 +224,8 @@ class Tracker:
         if n_t and n_p:
             # the gates are the largest jumps in one frame interval: over a frame the camera
             # dropped, a finger moves as far again
-            cost = gated_cost(tracks, pos, ok_cont, ok_new, self.gate * step,
-                              self.gate_down * step)
+            cost = gated_cost(tracks, pos, ok_cont, ok_new, self.gate * intervals,
+                              self.gate_down * intervals)
             # Contacts that are down are served first, pending ones get what is left: optimal
             # assignment maximises the number of pairs, so in one joint assignment a noise blip
             # or a finger just arriving next to a contact could take the contact's point and
@@ -245,9 +249,9 @@ class Tracker:
         shift: dict[int, tuple[int, XY]] = {}
         for k, members in groups.items():
             cx, cy = np.mean([tracks[i].pos for i in members], axis=0).tolist()
-            step = (pos[k][0] - cx, pos[k][1] - cy)
+            moved = (pos[k][0] - cx, pos[k][1] - cy)
             for i in members:
-                shift[i] = (k, step)
+                shift[i] = (k, moved)
         cfg, low_mm = self.config, self._pending_low_mm()
         down_frames = cfg.down_frames
         # how far a pending contact's point may move in a frame and still count (0: any)
