@@ -262,7 +262,12 @@ def test_report_rows_pool_by_another_attribute_or_none() -> None:
      "noise scale 9.0 is out of range"),
     (["eval", "--body", "x.npz"], "--body needs --suite NAME"),
     (["eval", "--suite", "hard", "--half", "tune", "--against", "b.toml", "--body"],
-     "leave out --fps, --resolution-scale, --noise-scale and --body"),
+     "leave out --fps, --resolution-scale, --noise-scale, --body and --drop-rate"),
+    (["eval", "--suite", "hard", "--half", "tune", "--against", "b.toml", "--drop-rate", "0.1"],
+     "--drop-rate"),
+    (["eval", "--drop-rate", "0.05", "x.npz"], "--drop-rate needs --suite NAME"),
+    (["eval", "--suite", "hard", "--drop-rate", "0.5", "--half", "tune"],
+     "drop rate 0.5 is out of range"),
     # bootstrap intervals and comparisons (evaluation/bootstrap.py)
     (["eval", "--suite", "hard", "--half", "tune", "--ci", "5"], "--ci 5 is out of range"),
     (["eval", "--suite", "hard", "--ci", "1000"], "--ci needs --suite NAME --half H"),
