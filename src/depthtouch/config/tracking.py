@@ -18,7 +18,9 @@ from ..errors import ConfigError
 class TrackingConfig:
     """Tracking: optimal assignment, debounce and grace.
 
-    gate_mm: largest jump between frames that keeps an id, when K is known (default 40).
+    gate_mm: largest jump between frames that keeps an id, when K is known (default 40); it is
+        meant for one frame interval: across frames the camera dropped (a gap of k intervals in
+        the timestamps) the gate is k times this, and the prediction spans them too.
     gate_px: the same when K is unknown (default 25).
     gate_fps: when set (e.g. 30), the frame rate gate_mm and gate_px are meant at. In a
         slower stream (from the frames' timestamps, more than 10 % slower) the gate of a
@@ -199,8 +201,8 @@ class TrackingConfig:
         15 -> 9, none more on 13 other held-out halves, lift latency p95 up by 3 frames at most
         (docs/config.md; docs/accuracy.md section 7, sessions 37 and 43).
     pending_step_max_mm: a contact not yet down whose point moved farther than this since it
-        was last seen (per frame: twice this after a missing frame; grown with ``gate_fps``
-        like the gate), while the hand pixels right behind it lie higher than
+        was last seen (per frame interval: twice this after a missing or a dropped frame; grown
+        with ``gate_fps`` like the gate), while the hand pixels right behind it lie higher than
         ``pending_step_attach_mm`` (default 33 mm; a touching finger rises 26-28 mm there,
         the raised hand over a mixed strip 37-49 mm), gains no evidence in that frame: a
         finger lands, it seldom arrives sliding. What arrives sliding is the strip of mixed
