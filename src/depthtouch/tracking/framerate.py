@@ -1,4 +1,5 @@
-"""The stream's frame rate, from the frames' timestamps, for the tracker's evidence.
+"""The stream's frame rate, from the frames' timestamps, for the tracker's evidence, and the
+frame intervals each frame spans (a frame the camera dropped makes a gap of two: ``step``).
 
 The evidence a new contact needs before ``down`` was chosen at one frame rate,
 ``TrackingConfig.reference_fps``. A camera at 60 fps sees a speck of mixed pixels under a

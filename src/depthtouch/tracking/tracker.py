@@ -5,11 +5,12 @@ gated (mm when the surface scale is known, px otherwise): contacts that are down
 pending ones on the points left. The distance is to where a contact was or to where its
 velocity takes it over the stream's frame intervals since it was last seen; the intervals are
 counted from the frames' timestamps (:attr:`.framerate.FrameRate.step`), so that over a frame
-the camera dropped a drag is predicted twice as far and the gates grow as much (an even stream,
-or one without timestamps, counts one interval a frame). Fingertips side by side whose regions merged into one
-point (a region about twice a tip's area) keep their ids and move with that point, each at its
-place in the pair; a contact hidden in a neighbour's region is held. A new contact goes
-``down`` once its evidence reaches ``down_frames``: frames, each counting 1 when its region has
+the camera dropped a drag is predicted twice as far and the gates grow as much (an even
+stream, or one without timestamps, counts one interval a frame). Fingertips side by side
+whose regions merged into one point (a region about twice a tip's area) keep their ids and
+move with that point, each at its place in the pair; a contact hidden in a neighbour's region
+is held. A new contact goes ``down`` once its evidence reaches ``down_frames``: frames, each
+counting 1 when its region has
 a fingertip's area (in mm², and in pixels where pixels are large) and ``weak_evidence``
 otherwise (a speck at a finger's edge, a hovering finger or a forearm's edge lying in the band),
 nothing when it lies behind another point on that point's finger (one finger, one tip), and
@@ -66,8 +67,8 @@ class Track:
 
     Positions are pairs of plain floats: a frame updates a handful of tracks, and a numpy call on
     a 2-vector costs as much as twenty float operations. xy_px: image px; pos: xy_px times the
-    tracker's scale (mm when known); vel: per frame interval, in the units of pos. report_px: where the
-    contact is reported, xy_px plus its point's offset (TouchPoints.offset_px).
+    tracker's scale (mm when known); vel: per frame interval, in the units of pos. report_px:
+    where the contact is reported, xy_px plus its point's offset (TouchPoints.offset_px).
     """
 
     xy_px: XY
