@@ -267,6 +267,18 @@ def _analysis(rows: list) -> list[str]:
         "1.248, 1.364 ms (session 49) and 1.357, 1.282 ms (session 50), within the spread "
         "between runs. Over the 1.0 ms target on this machine, with either code; compare "
         "runs on one machine only.",
+        "- Session 51 (the same Xeon VM): the tracker's count of frame intervals (a loop over "
+        "the tracks adding each frame's step) against session 50's code, paired runs taking "
+        "turns (4 rounds of 360 frames): 640x480 with 5 touches 1.321 against 1.325 ms, "
+        "tracking 0.155 against 0.152 ms; the table above was not run again. The machine ran "
+        "slower this session (the unchanged code read 1.14-1.79 ms in back-to-back `--quick` "
+        "runs). Two tries on the fingertip kernel changed nothing and were taken out: reading "
+        "each region's windows of the seven per-pixel arrays first, one load per cache line "
+        "(touch points 0.669 against 0.668 ms, paired), and the surface's per-pixel arrays in 2 "
+        "MB pages (1.456 against 1.500 ms in alternating blocks). The kernel takes 0.17-0.20 ms "
+        "for 5 regions on one frame's input repeated, 0.27-0.32 ms on 30 frames' inputs in turn "
+        "or with the cache flushed, and 0.28-0.36 ms inside the pipeline: part of what the warm "
+        "figure saves is the branch predictor trained on one repeated input, not only memory.",
         "- The fingertip kernel reads small windows of six per-pixel surface arrays that the "
         "full-frame passes (median, band) push out of the cache each frame: the same call takes "
         "about half the time on warm data. Memory, not arithmetic, is most of what is left.",
