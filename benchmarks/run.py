@@ -270,7 +270,7 @@ def _analysis(rows: list) -> list[str]:
         "- Session 51 (the same Xeon VM): the tracker's count of frame intervals (a loop over "
         "the tracks adding each frame's step) against session 50's code, paired runs taking "
         "turns (4 rounds of 360 frames): 640x480 with 5 touches 1.321 against 1.325 ms, "
-        "tracking 0.155 against 0.152 ms; the table above was not run again. The machine ran "
+        "tracking 0.155 against 0.152 ms. The machine ran "
         "slower this session (the unchanged code read 1.14-1.79 ms in back-to-back `--quick` "
         "runs). Two tries on the fingertip kernel changed nothing and were taken out: reading "
         "each region's windows of the seven per-pixel arrays first, one load per cache line "
@@ -278,7 +278,11 @@ def _analysis(rows: list) -> list[str]:
         "MB pages (1.456 against 1.500 ms in alternating blocks). The kernel takes 0.17-0.20 ms "
         "for 5 regions on one frame's input repeated, 0.27-0.32 ms on 30 frames' inputs in turn "
         "or with the cache flushed, and 0.28-0.36 ms inside the pipeline: part of what the warm "
-        "figure saves is the branch predictor trained on one repeated input, not only memory.",
+        "figure saves is the branch predictor trained on one repeated input, not only memory."
+        " `make bench` at the session's end (the table above): 640x480 with 5 touches 1.79 ms"
+        " (p95 2.46), 0.64 ms without touches, against 1.30 and 0.53 ms in session 50's table,"
+        " while OpenCV's reference pass below read 1.045 ms against 0.732: the machine that"
+        " hour, about 40 % slower across the board, not the code (the paired runs above).",
         "- The fingertip kernel reads small windows of six per-pixel surface arrays that the "
         "full-frame passes (median, band) push out of the cache each frame: the same call takes "
         "about half the time on warm data. Memory, not arithmetic, is most of what is left.",
