@@ -89,6 +89,10 @@ def _add_eval(sub: argparse._SubParsersAction) -> None:
                    help="with --suite: frames the camera never delivers, as a busy USB bus "
                         "drops them: after a kept frame the next is lost with chance P (0-0.2), "
                         "in bursts of 1.4 on average (docs/simulator.md)")
+    p.add_argument("--breathing-mm", type=float, metavar="MM",
+                   help="with --suite: every frame moves as a whole, as a depth camera's does: "
+                        "a wobble of MM/2 and jumps of 1-2 MM held 0.5-3 s (0-10; "
+                        "docs/simulator.md)")
     p.add_argument("--json", action="store_true", help="print the metrics as JSON")
     p.add_argument("--space", choices=("depth", "screen"), default="depth",
                    help="score --events by x, y (depth) or sx, sy (screen: fused cameras of "
@@ -114,10 +118,11 @@ def _add_eval(sub: argparse._SubParsersAction) -> None:
                 from .evaluation.halves import print_compare
 
                 if (a.fps is not None or a.resolution_scale is not None
-                        or a.noise_scale is not None or a.body or a.drop_rate is not None):
+                        or a.noise_scale is not None or a.body or a.drop_rate is not None
+                        or a.breathing_mm is not None):
                     raise ConfigError("--against runs the suite as it is; leave out --fps, "
-                                      "--resolution-scale, --noise-scale, --body and "
-                                      "--drop-rate")
+                                      "--resolution-scale, --noise-scale, --body, "
+                                      "--drop-rate and --breathing-mm")
                 if a.by is not None:
                     raise ConfigError("--against compares the overall figures of each half; "
                                       "leave out --by")
@@ -131,7 +136,8 @@ def _add_eval(sub: argparse._SubParsersAction) -> None:
                                 as_json=a.json, progress=None if a.json else _print_case,
                                 fps=a.fps, resolution_scale=a.resolution_scale,
                                 noise_scale=a.noise_scale, by=a.by or "group", ci=a.ci,
-                                body=a.body, drop_rate=a.drop_rate)
+                                body=a.body, drop_rate=a.drop_rate,
+                                breathing_mm=a.breathing_mm)
         if a.ci or a.against:
             flag = "--ci" if a.ci else "--against"
             raise ConfigError(f"{flag} needs --suite NAME --half H (intervals over a half's "
@@ -149,6 +155,9 @@ def _add_eval(sub: argparse._SubParsersAction) -> None:
         if a.drop_rate is not None and not a.suite:
             raise ConfigError("--drop-rate needs --suite NAME (a recording has the frames it "
                               "has); render one with `depthtouch sim SCENE --drop-rate P`")
+        if a.breathing_mm is not None and not a.suite:
+            raise ConfigError("--breathing-mm needs --suite NAME (a recording has its own "
+                              "noise); render one with `depthtouch sim SCENE --breathing-mm MM`")
         if a.gestures:
             from .evaluation.gestures import gestures_output
 
@@ -163,7 +172,7 @@ def _add_eval(sub: argparse._SubParsersAction) -> None:
                 cache=cache_root() if a.cache else None,
                 progress=None if a.json else _print_case, fps=a.fps,
                 resolution_scale=a.resolution_scale, noise_scale=a.noise_scale, body=a.body,
-                drop_rate=a.drop_rate,
+                drop_rate=a.drop_rate, breathing_mm=a.breathing_mm,
             )
         else:
             metrics = eval_recording_command(a.recording, a.truth, events_path=a.events,
@@ -329,6 +338,10 @@ def _add_sim(sub: argparse._SubParsersAction) -> None:
                    help="frames the camera never delivers [0, 0.2]: after a kept frame the "
                         "next is lost with chance P, in bursts of 1.4 on average; the rest keep "
                         "their timestamps and the truth is numbered over them")
+    p.add_argument("--breathing-mm", type=float, default=0.0, metavar="MM",
+                   help="the whole frame moves at once [0, 10]: a wobble of MM/2 (0.5 s) and "
+                        "jumps of 1-2 MM held 0.5-3 s, as a depth camera's frame does; a "
+                        "disparity camera's pixels by (z / distance)^2 of it")
     p.add_argument("--no-noise", action="store_true", help="exact geometry, no sensor noise")
     p.add_argument("--views", type=int, metavar="N",
                    help="N cameras (2-3) 0.8 m apart: --out is a folder of viewK.npz, "
@@ -355,6 +368,8 @@ def _add_sim(sub: argparse._SubParsersAction) -> None:
             raise ConfigError("--body applies to one camera; leave it out with --views")
         if a.views is not None and a.drop_rate != 0.0:
             raise ConfigError("--drop-rate applies to one camera; leave it out with --views")
+        if a.views is not None and a.breathing_mm != 0.0:
+            raise ConfigError("--breathing-mm applies to one camera; leave it out with --views")
         if a.views is not None:
             from .sim.multiview import default_poses, render_views, write_views
 
@@ -371,7 +386,7 @@ def _add_sim(sub: argparse._SubParsersAction) -> None:
             surface=a.surface, seed=a.seed, fps=a.fps, noise=not a.no_noise, hand=a.hand,
             resolution_scale=a.resolution_scale, pitch_deg=a.pitch, noise_scale=a.noise_scale,
             motion_ms=a.motion_ms, skin_noise=a.skin_noise, body=a.body,
-            drop_rate=a.drop_rate,
+            drop_rate=a.drop_rate, breathing_mm=a.breathing_mm,
         )
         write_recording(rec, a.out, a.truth)
         if not a.quiet:

@@ -186,7 +186,7 @@ class Pipeline:
         if not self._frame_ok(frame):
             return self._result(frame, [], "skipped")
         t0 = time.perf_counter()
-        frame = self._prefilter(frame)
+        frame = surface.level(self._prefilter(frame))
         # keep the surroundings of touches of arms reaching in from the border (of every touch
         # with adapt.keep_all_touches): a finger held still is never absorbed; a "touch" on
         # something standing on the surface is

@@ -24,6 +24,10 @@ class SurfaceConfig:
     noise_floor_mm: lower bound of a pixel's noise sigma in mm (default 0.5, range [0, 50]).
     relearn_s: seconds of frames to learn the surface again after a camera bump, shorter than the
         first learning so that touches come back soon (default 0.5, range (0, 60]).
+    level_limit_mm: levelling (:mod:`depthtouch.surface.level`): each frame's offset as a whole
+        from the surface (a shift, and one growing with the depth squared) is measured on a
+        sparse grid and taken off before the frame meets the surface, following offsets up to
+        this far from the previous frame's (0 = off; range [0, 100]).
     """
 
     learn_s: float = 1.5
@@ -32,6 +36,7 @@ class SurfaceConfig:
     min_valid_fraction: float = 0.5
     noise_floor_mm: float = 0.5
     relearn_s: float = 0.5
+    level_limit_mm: float = 0.0
 
     def validate(self) -> None:
         _range("surface.learn_s", self.learn_s, 0.0, 60.0, lo_open=True)
@@ -44,6 +49,7 @@ class SurfaceConfig:
             )
         _range("surface.min_valid_fraction", self.min_valid_fraction, 0.0, 1.0, lo_open=True)
         _range("surface.noise_floor_mm", self.noise_floor_mm, 0.0, 50.0)
+        _range("surface.level_limit_mm", self.level_limit_mm, 0.0, 100.0)
 
 
 @dataclass(frozen=True)

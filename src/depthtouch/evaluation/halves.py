@@ -200,18 +200,20 @@ def eval_halves_command(
     ci: int = 0,
     body: bool = False,
     drop_rate: float | None = None,
+    breathing_mm: float | None = None,
 ) -> dict[str, Any]:
     """``depthtouch eval --suite NAME --half tune|held-out|all``: :func:`halves_report`, its
     rows pooled ``by``, with ``ci`` bootstrap resamples for the intervals (0: none). ``fps``:
     every case rendered at this frame rate instead of the suite's; ``resolution_scale``: every
     camera at this many times its resolution; ``noise_scale``: every camera's axial noise times
     this; ``body``: every arm goes on into a body that leaves the view; ``drop_rate``: frames
-    the camera never delivers (``render_scene(drop_rate=)``)."""
+    the camera never delivers (``render_scene(drop_rate=)``); ``breathing_mm``: frames that
+    move as a whole (``render_scene(breathing_mm=)``)."""
     check_group_key(by)  # before any case is rendered
     if ci:
         check_resamples(ci)
     s = (load_suite(suite).at_fps(fps).at_resolution(resolution_scale).at_noise(noise_scale)
-         .with_body(body).with_drops(drop_rate))
+         .with_body(body).with_drops(drop_rate).with_breathing(breathing_mm))
     cases = _half_cases(s, subset, half)
     results = run_cases(cases, config, gate_mm=s.gate_mm, workers=workers or default_workers(),
                         cache=cache, progress=progress)
@@ -367,7 +369,8 @@ def print_halves(suite: str | Path, half: str, *, subset: str | None = None,
                  progress: Callable[[SuiteCase, EvalResult], None] | None = None,
                  fps: float | None = None, resolution_scale: float | None = None,
                  noise_scale: float | None = None, by: str = "group", ci: int = 0,
-                 body: bool = False, drop_rate: float | None = None) -> int:
+                 body: bool = False, drop_rate: float | None = None,
+                 breathing_mm: float | None = None) -> int:
     """The CLI's ``eval --suite NAME --half H [--by B] [--ci N]``: print the tables (or JSON);
     returns 0."""
     import json
@@ -376,7 +379,8 @@ def print_halves(suite: str | Path, half: str, *, subset: str | None = None,
     report = eval_halves_command(suite, half=half, subset=subset, config=config,
                                  workers=workers, cache=cache, progress=progress, fps=fps,
                                  resolution_scale=resolution_scale, noise_scale=noise_scale,
-                                 by=by, ci=ci, body=body, drop_rate=drop_rate)
+                                 by=by, ci=ci, body=body, drop_rate=drop_rate,
+                                 breathing_mm=breathing_mm)
     if as_json:
         print(json.dumps(report, indent=1))
         return 0

@@ -72,6 +72,7 @@ class SuiteCase:
     growth with the incidence angle (1: none), see ``render_scene``.
     body: arms go on past the shoulder into a body that leaves the view, see ``render_scene``.
     drop_rate: frames the camera never delivers (0: none), see ``render_scene``.
+    breathing_mm: the whole frame moves at once by about this (0: none), see ``render_scene``.
     """
 
     scene: str
@@ -90,6 +91,7 @@ class SuiteCase:
     skin_noise: float = 1.0
     body: bool = False
     drop_rate: float = 0.0
+    breathing_mm: float = 0.0
 
     @property
     def label(self) -> str:
@@ -103,8 +105,9 @@ class SuiteCase:
         skin = "" if self.skin_noise == 1.0 else f"/skin{self.skin_noise:g}"
         body = "/body" if self.body else ""
         drop = "" if self.drop_rate == 0.0 else f"/drop{self.drop_rate:g}"
+        breath = "" if self.breathing_mm == 0.0 else f"/breathe{self.breathing_mm:g}"
         return (f"{self.scene}/{self.camera}{res}/{self.distance_m:g}m{surf}{tilt}{hand}"
-                f"{pitch}{noise}{motion}{skin}{body}{drop}/s{self.seed}")
+                f"{pitch}{noise}{motion}{skin}{body}{drop}{breath}/s{self.seed}")
 
     def render_kwargs(self) -> dict[str, Any]:
         kw: dict[str, Any] = {"camera": self.camera, "distance_m": self.distance_m,
@@ -126,6 +129,8 @@ class SuiteCase:
             kw["body"] = True
         if self.drop_rate != 0.0:  # (absent at 0: the cache keys stay as they were)
             kw["drop_rate"] = self.drop_rate
+        if self.breathing_mm != 0.0:  # (absent at 0: the cache keys stay as they were)
+            kw["breathing_mm"] = self.breathing_mm
         return kw
 
     def cache_key(self) -> str:
@@ -197,6 +202,16 @@ class Suite:
         from ..sim.drops import check_drop_rate
 
         return self._with(drop_rate=check_drop_rate(rate))
+
+    def with_breathing(self, scale_mm: float | None) -> Suite:
+        """The same cases with frames that move as a whole (``breathing_mm``, see
+        :func:`depthtouch.sim.render_scene`, [0, 10] mm; None: this suite). Halves stay the
+        same."""
+        if scale_mm is None:
+            return self
+        from ..sim.breathing import check_breathing
+
+        return self._with(breathing_mm=check_breathing(scale_mm))
 
     def _with(self, **changes: Any) -> Suite:
         """Every case with these render settings changed; tags and order kept."""
@@ -277,7 +292,7 @@ def suite_from_dict(data: dict[str, Any], where: str = "suite") -> Suite:
         gw = f"{where}: group {gname}"
         known = {"name", "scenes", "cameras", "distances_m", "surfaces", "tilts_deg", "seeds",
                  "fps", "tags", "hands", "pitches_deg", "motion_ms", "skin_noise", "body",
-                 "drop_rate"}
+                 "drop_rate", "breathing_mm"}
         unknown = sorted(set(g) - known)
         if unknown:
             raise ConfigError(
@@ -300,6 +315,7 @@ def suite_from_dict(data: dict[str, Any], where: str = "suite") -> Suite:
         motion = _numbers([g.get("motion_ms", 0.0)], "motion_ms", gw, 0.0, 50.0)[0]
         skin = _numbers([g.get("skin_noise", 1.0)], "skin_noise", gw, 1.0, 4.0)[0]
         drop = _numbers([g.get("drop_rate", 0.0)], "drop_rate", gw, 0.0, 0.2)[0]
+        breath = _numbers([g.get("breathing_mm", 0.0)], "breathing_mm", gw, 0.0, 10.0)[0]
         body = g.get("body", False)
         if not isinstance(body, bool):
             raise ConfigError(f"{gw}: body = {body!r} must be true or false")
@@ -314,7 +330,8 @@ def suite_from_dict(data: dict[str, Any], where: str = "suite") -> Suite:
                                                                          seeds):
                             c = SuiteCase(s, cam, d, surf, tilt, int(seed), fps, gname, hand,
                                           pitch_deg=pitch, motion_ms=motion,
-                                          skin_noise=skin, body=body, drop_rate=drop)
+                                          skin_noise=skin, body=body, drop_rate=drop,
+                                          breathing_mm=breath)
                             key = dataclasses.replace(c, group="")
                             cases.setdefault(key, (c, set()))[1].update(tags)
     ordered = [c for c, _ in cases.values()]

@@ -246,6 +246,7 @@ def eval_suite_command(
     noise_scale: float | None = None,
     body: bool = False,
     drop_rate: float | None = None,
+    breathing_mm: float | None = None,
 ) -> dict[str, Metrics]:
     """``depthtouch eval --suite NAME``: metrics pooled by ``by``, plus ``all`` at the end.
 
@@ -255,10 +256,11 @@ def eval_suite_command(
     noise_scale: every camera's axial noise times this (None: its own).
     body: every arm goes on into a body that leaves the view (``render_scene(body=True)``).
     drop_rate: frames the camera never delivers (``render_scene(drop_rate=)``; None: none).
+    breathing_mm: frames that move as a whole (``render_scene(breathing_mm=)``; None: none).
     """
     check_group_key(by)  # before any case is rendered
     s = (load_suite(suite).at_fps(fps).at_resolution(resolution_scale).at_noise(noise_scale)
-         .with_body(body).with_drops(drop_rate))
+         .with_body(body).with_drops(drop_rate).with_breathing(breathing_mm))
     cases = s.select(subset)
     results = run_cases(cases, config, gate_mm=s.gate_mm, workers=workers or default_workers(),
                         cache=cache, progress=progress)

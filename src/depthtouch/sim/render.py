@@ -18,6 +18,7 @@ import numpy as np
 from ..errors import ConfigError, SourceError
 from ..files import write_text_atomic
 from .artefacts import exposure_mix
+from .breathing import breathe, check_breathing
 from .cameras import NoiseModel, get_profile, scaled_profile
 from .drops import check_drop_rate, drop_frames
 from .geometry import Primitive, Rays, Surface, make_surface, render_primitives, rotation_xyz
@@ -115,6 +116,7 @@ def render_scene(
     skin_noise: float = 1.0,
     body: bool = False,
     drop_rate: float = 0.0,
+    breathing_mm: float = 0.0,
 ) -> SimRecording:
     """Render ``scene`` (see :data:`~depthtouch.sim.SCENES`) as seen by ``camera``.
 
@@ -156,6 +158,11 @@ def render_scene(
     it with chance 0.3 (:mod:`~depthtouch.sim.drops`); the remaining frames keep their
     timestamps, and the truth is numbered again over them. The frames that remain are exactly
     those rendered without it.
+    breathing_mm: the whole frame moves at once, [0, 10] mm (default 0: none): a wobble of
+    half this (standard deviation, 0.5 s time constant) and jumps of 1-2 times it held for
+    0.5-3 s, at the surface's distance; a disparity camera's pixels by the offset times
+    (z / distance)^2 (:mod:`~depthtouch.sim.breathing`). The hands, the scene and each pixel's
+    noise stay as they were; applied before ``drop_rate``.
     Unknown names or out-of-range values raise ConfigError naming the valid ones.
     """
     if not (isinstance(resolution_scale, (int, float)) and 0.25 <= resolution_scale <= 3.0):
@@ -180,6 +187,7 @@ def render_scene(
     if not isinstance(body, bool):
         raise ConfigError(f"body {body!r} must be true or false")
     drop_rate = check_drop_rate(drop_rate)
+    breathing_mm = check_breathing(breathing_mm)
     if hand not in HAND_STYLES:
         raise ConfigError(f"unknown hand {hand!r}; use one of {', '.join(HAND_STYLES)}")
     rays = Rays(profile.K, profile.resolution_wh)
@@ -234,6 +242,8 @@ def render_scene(
                      script, truth, n if first_busy is None else first_busy)
     rec = SimRecording(depth, np.arange(n, dtype=np.float64) / fps, 0.001, rays.K.copy(), doc,
                        labels_out)
+    if breathing_mm > 0:
+        rec = breathe(rec, breathing_mm, seed, profile.kind, distance_m)
     return drop_frames(rec, drop_rate, seed) if drop_rate > 0 else rec
 
 

@@ -22,6 +22,7 @@ from ..types import Frame
 from .adapt import SurfaceAdapter
 from .bounds import TIP_TOP_MM, BandBounds, band_bounds, height_mm, noisy_share
 from .gate import LearningGate
+from .level import Leveller
 from .model import SurfaceLearner, SurfaceModel
 
 log = logging.getLogger(__name__)
@@ -57,6 +58,8 @@ class Surface:
         self._learned: SurfaceModel | None = None
         self._bounds: BandBounds | None = None
         self._adapter: SurfaceAdapter | None = None
+        lim = config.surface.level_limit_mm
+        self._leveller = Leveller(lim) if lim > 0 else None
         self.relearns = 0
         if model is not None:
             self.use(model)
@@ -174,6 +177,8 @@ class Surface:
         self._warn_if_noisy(self._bounds)
         self._adapter = (SurfaceAdapter(self.config.adapt, self._bounds)
                          if self.config.adapt.enabled else None)
+        if self._leveller is not None:
+            self._leveller.use_reference(self._bounds.surface_mm)
 
     def _warn_if_noisy(self, bounds: BandBounds) -> None:
         """One warning when the surface is too noisy on most of it for a touch to stand out."""
@@ -201,11 +206,30 @@ class Surface:
                 return False
             if verdict == "skip":
                 return False
+        if self._leveller is not None:
+            frame = dataclasses.replace(
+                frame, depth=self._leveller.update(frame.depth, frame.depth_scale_m * 1000.0))
         model = self._learner.update(frame)
         if model is None:
             return False
         self.use(model)
         return True
+
+    def level(self, frame: Frame) -> Frame:
+        """The frame (pre-filtered) with its offset as a whole from the surface taken off
+        (``surface.level_limit_mm``; :mod:`.level`), before :meth:`follow` and the band see it;
+        the frame itself when levelling is off or nothing moved."""
+        lev = self._leveller
+        if lev is None or self._bounds is None:
+            return frame
+        depth = lev.update(frame.depth, frame.depth_scale_m * 1000.0)
+        return frame if depth is frame.depth else dataclasses.replace(frame, depth=depth)
+
+    @property
+    def level_offset_mm(self) -> tuple[float, float]:
+        """The last frame's offset as a whole (a, b) mm (see :mod:`.level`); (0, 0) when
+        levelling is off."""
+        return self._leveller.offset_mm if self._leveller is not None else (0.0, 0.0)
 
     def follow(self, frame: Frame, keep_xy_px: np.ndarray
                ) -> Literal["ok", "disturbed", "bump"]:
@@ -246,5 +270,7 @@ class Surface:
     def _forget(self, learner: SurfaceLearner) -> None:
         self._learned, self._bounds, self._adapter = None, None, None
         self._learner = learner
+        if self._leveller is not None:
+            self._leveller.reset()
         if self.gate is not None:
             self.gate.reset()

@@ -1,0 +1,236 @@
+"""Levelling: a depth frame that moved as a whole is moved back before it meets the surface.
+
+A depth camera's whole frame moves from frame to frame besides each pixel's own noise (its
+projector and calibration follow the temperature: all depths of a still scene step together by
+a few millimetres and stay so for seconds, or wobble; :mod:`depthtouch.sim.breathing`). The
+touch band is a few millimetres thick, so such a step lifts the whole surface into it or sinks
+the fingertips under it, and the bump check sees most of the surface change at once and turns
+touches off. The surface adapter follows a slow drift one stripe at a time (a cycle takes
+24 frames); a step is over before it has visited the stripes.
+
+Each frame, before the surface adapter and the band see it, :func:`frame_offset` measures how
+far the frame lies from a reference (the learned surface; while learning, the first learning
+frame) on a sparse grid of pixels (every 8th of every 8th row): the depth differences within
+``limit_mm`` of the previous frame's offset, then those within 3 robust standard deviations of
+their median, fitted by least squares as ``a + b q`` with ``q = (S / S_ref)^2 - 1``, ``S`` the
+reference depth at the pixel and ``S_ref`` its median: ``a`` is a shift of every depth, ``b``
+one that grows with the square of the depth, as a disparity offset of a stereo or
+structured-light camera does (``b`` is left at 0 where the reference spans too little depth to
+tell the two apart). Hands, arms and objects lie outside the window or are a minority of the
+grid. :func:`level_depth` then subtracts the fitted offset from every pixel (rounded to the
+camera's units; missing pixels stay missing), only when it reaches half a unit somewhere.
+
+A frame too covered to measure (fewer than a quarter of the usable grid pixels left) keeps the
+previous offset. An offset farther than ``limit_mm`` from the previous one is not followed:
+the camera moved, and the bump check learns the surface again. :class:`Leveller` keeps the
+reference and the previous offset.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+
+#: the grid's step, pixels
+STEP_PX = 8
+#: inliers lie within this many robust standard deviations of the median difference
+_K_SIGMA = 3.0
+#: the share of the usable grid pixels a frame must leave to be measured
+_MIN_SHARE = 0.25
+#: the spread of q below which the fit is a plain shift (b = 0)
+_MIN_Q_SPREAD = 0.02
+
+
+@numba.njit(cache=True, nogil=True)
+def _hist_median(v: np.ndarray, n: int, lo: float, hi: float, bins: np.ndarray) -> float:
+    """The median of ``v[:n]`` (all within [lo, hi]) to within a bin of ``(hi - lo) / len(bins)``
+    (a histogram: a quickselect's data-dependent branches cost several times more here)."""
+    nb = bins.shape[0]
+    bins[:] = 0
+    width = (hi - lo) / nb
+    for i in range(n):
+        k = int((v[i] - lo) / width)
+        bins[min(max(k, 0), nb - 1)] += 1
+    half = 0.5 * n
+    c = 0
+    for k in range(nb):
+        if c + bins[k] >= half:
+            return lo + (k + (half - c) / max(bins[k], 1)) * width
+        c += bins[k]
+    return hi
+
+
+@numba.njit(cache=True, nogil=True)
+def _fit(depth: np.ndarray, ref_mm: np.ndarray, ref_median_mm: float, to_mm: float,
+         prev_a: float, prev_b: float, limit_mm: float, step: int
+         ) -> tuple[float, float, int, int]:
+    """(a, b, inliers, usable grid pixels) of the frame's offset from ``ref_mm`` (see the
+    module doc); a = b = NaN when too few pixels are left."""
+    h, w = depth.shape
+    sy, sx = 2 * step, max(step // 2, 1)  # fewer rows, more columns: fewer cache lines read
+    m = ((h + sy - 1) // sy) * ((w + sx - 1) // sx)
+    dv = np.empty(m, np.float64)
+    qv = np.empty(m, np.float64)
+    inv2 = 1.0 / (ref_median_mm * ref_median_mm)
+    n = 0
+    usable = 0
+    for y in range(sy // 2, h, sy):
+        for x in range(sx // 2, w, sx):
+            s = ref_mm[y, x]
+            if not (s > 0.0):
+                continue
+            usable += 1
+            d = depth[y, x]
+            if d == 0:
+                continue
+            q = s * s * inv2 - 1.0
+            r = d * to_mm - s - (prev_a + prev_b * q)  # from the previous offset
+            if abs(r) > limit_mm:
+                continue
+            dv[n] = r
+            qv[n] = q
+            n += 1
+    if n < 8 or n < _MIN_SHARE * usable:
+        return np.nan, np.nan, n, usable
+    bins = np.empty(512, np.int64)
+    med = _hist_median(dv, n, -limit_mm, limit_mm, bins)
+    av = np.empty(n, np.float64)
+    for i in range(n):
+        av[i] = abs(dv[i] - med)
+    mad = _hist_median(av, n, 0.0, 2.0 * limit_mm, bins)
+    tol = max(_K_SIGMA * 1.4826 * mad, 0.5)
+    s0 = 0.0
+    s1 = 0.0
+    s2 = 0.0
+    sd = 0.0
+    sqd = 0.0
+    k = 0
+    for i in range(n):
+        if av[i] > tol:
+            continue
+        s0 += 1.0
+        s1 += qv[i]
+        s2 += qv[i] * qv[i]
+        sd += dv[i]
+        sqd += qv[i] * dv[i]
+        k += 1
+    if k < 8:
+        return np.nan, np.nan, k, usable
+    mq = s1 / s0
+    var_q = s2 / s0 - mq * mq
+    if var_q < _MIN_Q_SPREAD * _MIN_Q_SPREAD:
+        return prev_a + sd / s0, prev_b, k, usable
+    b = (sqd / s0 - mq * sd / s0) / var_q
+    a = sd / s0 - b * mq
+    return prev_a + a, prev_b + b, k, usable
+
+
+@numba.njit(cache=True, nogil=True)
+def _level(depth: np.ndarray, ref_mm: np.ndarray, ref_median_mm: float, a: float, b: float,
+           to_units: float, out: np.ndarray) -> None:
+    h, w = depth.shape
+    inv2 = 1.0 / (ref_median_mm * ref_median_mm)
+    for y in range(h):
+        for x in range(w):
+            d = depth[y, x]
+            if d == 0:
+                out[y, x] = 0
+                continue
+            s = ref_mm[y, x]
+            q = s * s * inv2 - 1.0 if s > 0.0 else 0.0
+            v = d - round((a + b * q) * to_units)
+            out[y, x] = min(max(v, 1), 65535)
+
+
+def frame_offset(depth: np.ndarray, ref_mm: np.ndarray, to_mm: float, *,
+                 prev: tuple[float, float] = (0.0, 0.0), limit_mm: float = 15.0,
+                 ref_median_mm: float | None = None) -> tuple[float, float] | None:
+    """The frame's offset from the reference as (a, b) mm (pure; see the module doc), or None
+    when too little of the surface is left to measure it.
+
+    depth: uint16 (H, W) in camera units (``to_mm`` mm each); ref_mm: float32 (H, W) reference
+    depth in mm, 0 or NaN where unusable; prev: the previous frame's (a, b); limit_mm: the
+    farthest a frame's difference may lie from the previous offset and count."""
+    med = float(ref_median_mm) if ref_median_mm is not None else reference_stats(ref_mm)[0]
+    if not med > 0.0:
+        return None
+    a, b, _, _ = _fit(depth, ref_mm, med, float(to_mm), float(prev[0]), float(prev[1]),
+                      float(limit_mm), STEP_PX)
+    if math.isnan(a):
+        return None
+    return float(a), float(b)
+
+
+def level_depth(depth: np.ndarray, ref_mm: np.ndarray, to_mm: float, offset: tuple[float, float],
+                ref_median_mm: float | None = None,
+                q_range: tuple[float, float] | None = None) -> np.ndarray:
+    """``depth`` with ``a + b q`` mm taken off every pixel (pure; a new array, or ``depth``
+    itself when the offset rounds to 0 units everywhere). ``ref_median_mm``, ``q_range``: the
+    reference's median and the span of q over it (:func:`reference_stats`), when known."""
+    if ref_median_mm is None or q_range is None:
+        ref_median_mm, q_range = reference_stats(ref_mm)
+    a, b = offset
+    largest = max(abs(a + b * q_range[0]), abs(a + b * q_range[1]))
+    if not ref_median_mm > 0.0 or largest / to_mm < 0.5:
+        return depth
+    out = np.empty_like(depth)
+    _level(depth, ref_mm, float(ref_median_mm), float(a), float(b), 1.0 / float(to_mm), out)
+    return out
+
+
+def reference_stats(ref_mm: np.ndarray) -> tuple[float, tuple[float, float]]:
+    """The median reference depth (mm) on the levelling grid, and the span of q there; NaN and
+    (0, 0) when none is usable."""
+    g = ref_mm[STEP_PX // 2::STEP_PX, STEP_PX // 2::STEP_PX]
+    g = g[np.isfinite(g) & (g > 0)]
+    if not g.size:
+        return math.nan, (0.0, 0.0)
+    med = float(np.median(g))
+    return med, (float((g.min() / med) ** 2 - 1.0), float((g.max() / med) ** 2 - 1.0))
+
+
+class Leveller:
+    """Keeps the reference and the previous offset; :meth:`update` levels each frame.
+
+    limit_mm: the farthest a frame's offset may lie from the previous one and be followed.
+    """
+
+    def __init__(self, limit_mm: float) -> None:
+        self.limit_mm = float(limit_mm)
+        self.reset()
+
+    def reset(self) -> None:
+        """Forget the reference (the next frame, or :meth:`use_reference`, sets one)."""
+        self._ref: np.ndarray | None = None
+        self._med = math.nan
+        self._q_range = (0.0, 0.0)
+        self.offset_mm: tuple[float, float] = (0.0, 0.0)
+        self.measured = False
+
+    @property
+    def has_reference(self) -> bool:
+        return self._ref is not None
+
+    def use_reference(self, ref_mm: np.ndarray) -> None:
+        """Level against this depth map (mm; 0 or NaN where unusable) from now on, from offset
+        0. The array is read, never written; it may change in place (the adapted surface)."""
+        self._ref = ref_mm
+        self._med, self._q_range = reference_stats(ref_mm)
+        self.offset_mm = (0.0, 0.0)
+
+    def update(self, depth: np.ndarray, to_mm: float) -> np.ndarray:
+        """The frame levelled against the reference (``depth`` itself when nothing moves). The
+        first frame without a reference becomes it (in mm), and comes back as it is."""
+        if self._ref is None:
+            self.use_reference(np.where(depth > 0, depth.astype(np.float32) * np.float32(to_mm),
+                                        np.float32(0.0)))
+            self.measured = False
+            return depth
+        off = frame_offset(depth, self._ref, to_mm, prev=self.offset_mm,
+                           limit_mm=self.limit_mm, ref_median_mm=self._med)
+        self.measured = off is not None
+        if off is not None:
+            self.offset_mm = off
+        return level_depth(depth, self._ref, to_mm, self.offset_mm, self._med, self._q_range)
