@@ -17,7 +17,10 @@ reference depth at the pixel and ``S_ref`` its median: ``a`` is a shift of every
 one that grows with the square of the depth, as a disparity offset of a stereo or
 structured-light camera does (``b`` is left at 0 where the reference spans too little depth to
 tell the two apart). Hands, arms and objects lie outside the window or are a minority of the
-grid. :func:`level_depth` then subtracts the fitted offset from every pixel (rounded to the
+grid. A change from the previous offset is taken only where it stands out of its own
+uncertainty (6 standard errors, from the fit's residuals): on a still camera the offset stays
+at 0 and the frames pass unchanged, where a noisy stereo camera's fitted ``b`` would otherwise
+move pixels at the far end of a tilted wall by a unit now and then. :func:`level_depth` then subtracts the fitted offset from every pixel (rounded to the
 camera's units; missing pixels stay missing), only when it reaches half a unit somewhere.
 
 A frame too covered to measure (fewer than a quarter of the usable grid pixels left) keeps the
@@ -37,6 +40,10 @@ import numpy as np
 STEP_PX = 8
 #: inliers lie within this many robust standard deviations of the median difference
 _K_SIGMA = 3.0
+#: a change of the offset is followed when it exceeds this many of its standard errors (from
+#: the fit's residuals as if they were independent; measured from frame to frame, the fit
+#: spreads 0.9-1.3 times that on still recordings, and a hand arriving moves ``b`` by up to 5)
+_K_CHANGE = 6.0
 #: the share of the usable grid pixels a frame must leave to be measured
 _MIN_SHARE = 0.25
 #: the spread of q below which the fit is a plain shift (b = 0)
@@ -105,6 +112,7 @@ def _fit(depth: np.ndarray, ref_mm: np.ndarray, ref_median_mm: float, to_mm: flo
     s1 = 0.0
     s2 = 0.0
     sd = 0.0
+    sdd = 0.0
     sqd = 0.0
     k = 0
     for i in range(n):
@@ -114,17 +122,28 @@ def _fit(depth: np.ndarray, ref_mm: np.ndarray, ref_median_mm: float, to_mm: flo
         s1 += qv[i]
         s2 += qv[i] * qv[i]
         sd += dv[i]
+        sdd += dv[i] * dv[i]
         sqd += qv[i] * dv[i]
         k += 1
     if k < 8:
         return np.nan, np.nan, k, usable
+    # the change from the previous offset, kept only where it stands out of its own
+    # uncertainty (_K_SIGMA standard errors): the offset does not flicker with the noise
+    md = sd / s0
     mq = s1 / s0
     var_q = s2 / s0 - mq * mq
-    if var_q < _MIN_Q_SPREAD * _MIN_Q_SPREAD:
-        return prev_a + sd / s0, prev_b, k, usable
-    b = (sqd / s0 - mq * sd / s0) / var_q
-    a = sd / s0 - b * mq
-    return prev_a + a, prev_b + b, k, usable
+    var_d = max(sdd / s0 - md * md, 0.0)
+    db = 0.0
+    if var_q >= _MIN_Q_SPREAD * _MIN_Q_SPREAD:
+        db = (sqd / s0 - mq * md) / var_q
+        resid = max(var_d - db * db * var_q, 0.0)
+        if db * db * var_q * s0 < _K_CHANGE * _K_CHANGE * resid:  # |db| < K se(db)
+            db = 0.0
+    da = md - db * mq
+    resid = max(var_d - db * db * var_q, 0.0)
+    if db == 0.0 and da * da * s0 < _K_CHANGE * _K_CHANGE * resid:  # |da| < K se(da)
+        da = 0.0
+    return prev_a + da, prev_b + db, k, usable
 
 
 @numba.njit(cache=True, nogil=True)

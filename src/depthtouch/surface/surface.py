@@ -203,6 +203,8 @@ class Surface:
             verdict = self.gate.update(frame)
             if verdict == "restart":
                 self._learner.reset()
+                if self._leveller is not None:
+                    self._leveller.reset()
                 return False
             if verdict == "skip":
                 return False
@@ -264,6 +266,8 @@ class Surface:
         """A stream ended while learning: the frames collected so far are not used."""
         if self._bounds is None:
             self._learner.reset()
+            if self._leveller is not None:
+                self._leveller.reset()
             if self.gate is not None:
                 self.gate.reset()
 
