@@ -10,18 +10,20 @@ touches off. The surface adapter follows a slow drift one stripe at a time (a cy
 
 Each frame, before the surface adapter and the band see it, :func:`frame_offset` measures how
 far the frame lies from a reference (the learned surface; while learning, the first learning
-frame) on a sparse grid of pixels (every 8th of every 8th row): the depth differences within
-``limit_mm`` of the previous frame's offset, then those within 3 robust standard deviations of
-their median, fitted by least squares as ``a + b q`` with ``q = (S / S_ref)^2 - 1``, ``S`` the
-reference depth at the pixel and ``S_ref`` its median: ``a`` is a shift of every depth, ``b``
-one that grows with the square of the depth, as a disparity offset of a stereo or
-structured-light camera does (``b`` is left at 0 where the reference spans too little depth to
-tell the two apart). Hands, arms and objects lie outside the window or are a minority of the
-grid. A change from the previous offset is taken only where it stands out of its own
-uncertainty (6 standard errors, from the fit's residuals): on a still camera the offset stays
-at 0 and the frames pass unchanged, where a noisy stereo camera's fitted ``b`` would otherwise
-move pixels at the far end of a tilted wall by a unit now and then. :func:`level_depth` then subtracts the fitted offset from every pixel (rounded to the
-camera's units; missing pixels stay missing), only when it reaches half a unit somewhere.
+frame) on a sparse grid of pixels (every 4th pixel of every 16th row): the depth differences
+within ``limit_mm`` of the previous frame's offset, then those within 3 robust standard
+deviations of their median, as ``a + b q`` with ``q = (S / S_ref)^2 - 1``, ``S`` the reference
+depth at the pixel and ``S_ref`` its median: ``a`` is a shift of every depth, ``b`` one that
+grows with the square of the depth, as a disparity offset of a stereo or structured-light
+camera does. ``b`` comes from the medians of the pixels nearer and farther than ``S_ref`` (the
+surface is each pixel's median over the learning frames; where the noise grows with the depth
+and is skewed, means would drift from it with q), and is left at 0 where the reference spans
+too little depth to tell the two apart. Hands, arms and objects lie outside the window or are
+a minority of the grid. A change from the previous offset is taken only where it stands out
+of its own uncertainty (6 standard errors of a median): on a still camera the offset stays at
+0 and the frames pass unchanged. :func:`level_depth` then subtracts the offset from every
+pixel (rounded to the camera's units; missing pixels stay missing), only when it reaches half
+a unit somewhere.
 
 A frame too covered to measure (fewer than a quarter of the usable grid pixels left) keeps the
 previous offset. An offset farther than ``limit_mm`` from the previous one is not followed:
@@ -108,41 +110,49 @@ def _fit(depth: np.ndarray, ref_mm: np.ndarray, ref_median_mm: float, to_mm: flo
         av[i] = abs(dv[i] - med)
     mad = _hist_median(av, n, 0.0, 2.0 * limit_mm, bins)
     tol = max(_K_SIGMA * 1.4826 * mad, 0.5)
-    s0 = 0.0
-    s1 = 0.0
-    s2 = 0.0
-    sd = 0.0
-    sdd = 0.0
-    sqd = 0.0
-    k = 0
+    # medians, not means: the surface is each pixel's median over the learning frames, and where
+    # the noise is skewed (it grows with the depth) a mean would drift away from it with q
+    lo = np.empty(n, np.float64)
+    hi = np.empty(n, np.float64)
+    nl = 0
+    nh = 0
+    sql = 0.0
+    sqh = 0.0
     for i in range(n):
         if av[i] > tol:
             continue
-        s0 += 1.0
-        s1 += qv[i]
-        s2 += qv[i] * qv[i]
-        sd += dv[i]
-        sdd += dv[i] * dv[i]
-        sqd += qv[i] * dv[i]
-        k += 1
+        if qv[i] < 0.0:
+            lo[nl] = dv[i]
+            sql += qv[i]
+            nl += 1
+        else:
+            hi[nh] = dv[i]
+            sqh += qv[i]
+            nh += 1
+    k = nl + nh
     if k < 8:
         return np.nan, np.nan, k, usable
     # the change from the previous offset, kept only where it stands out of its own
-    # uncertainty (_K_SIGMA standard errors): the offset does not flicker with the noise
-    md = sd / s0
-    mq = s1 / s0
-    var_q = s2 / s0 - mq * mq
-    var_d = max(sdd / s0 - md * md, 0.0)
+    # uncertainty (_K_CHANGE standard errors of a median, 1.25 sigma / sqrt(n)): the offset
+    # does not flicker with the noise
+    sigma = 1.4826 * mad
     db = 0.0
-    if var_q >= _MIN_Q_SPREAD * _MIN_Q_SPREAD:
-        db = (sqd / s0 - mq * md) / var_q
-        resid = max(var_d - db * db * var_q, 0.0)
-        if db * db * var_q * s0 < _K_CHANGE * _K_CHANGE * resid:  # |db| < K se(db)
+    if nl >= 8 and nh >= 8 and sqh / nh - sql / nl >= 2.0 * _MIN_Q_SPREAD:
+        ml = _hist_median(lo, nl, -limit_mm, limit_mm, bins)
+        mh = _hist_median(hi, nh, -limit_mm, limit_mm, bins)
+        dq = sqh / nh - sql / nl
+        db = (mh - ml) / dq
+        se_b = 1.2533 * sigma * math.sqrt(1.0 / nl + 1.0 / nh) / dq
+        if abs(db) < _K_CHANGE * se_b:
             db = 0.0
-    da = md - db * mq
-    resid = max(var_d - db * db * var_q, 0.0)
-    if db == 0.0 and da * da * s0 < _K_CHANGE * _K_CHANGE * resid:  # |da| < K se(da)
-        da = 0.0
+    if db != 0.0:
+        da = ml - db * sql / nl
+    else:
+        for i in range(nh):
+            lo[nl + i] = hi[i]
+        da = _hist_median(lo, k, -limit_mm, limit_mm, bins)
+        if abs(da) < _K_CHANGE * 1.2533 * sigma / math.sqrt(k):
+            da = 0.0
     return prev_a + da, prev_b + db, k, usable
 
 
