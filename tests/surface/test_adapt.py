@@ -123,14 +123,19 @@ def test_a_hand_whose_arm_enters_across_the_band_without_depth_is_never_absorbed
     assert [e.state for e in events].count("down") == 1
 
 
-def test_slow_drift_is_absorbed():
-    # the table comes 3 mm closer over 10 s (a thermal drift is slower still), then stays
+@pytest.mark.parametrize("level", [0.0, 15.0])
+def test_slow_drift_is_absorbed(level):
+    # the table comes 3 mm closer over 10 s (a thermal drift is slower still), then stays:
+    # followed by the surface adapter, or (levelling, the default) taken off every frame
     n_drift = int(10 * FPS)
     plane = lambda i: 1000.0 - min(max(0, i - 45), n_drift) * 3.0 / n_drift  # noqa: E731
     empty = np.zeros((480, 640), np.float32)
-    p, log = run([lambda k: empty] * int(20 * FPS), plane=plane)
+    cfg = PipelineConfig().replace(surface={"level_limit_mm": level})
+    p, log = run([lambda k: empty] * int(20 * FPS), config=cfg, plane=plane)
     assert not p.learning and p.stats.relearns == 0
-    assert abs(float(np.median(p.surface.bounds.surface_mm)) - 997.0) < 1.0
+    a, b = p.surface.level_offset_mm
+    assert abs(float(np.median(p.surface.bounds.surface_mm)) + a - 997.0) < 1.0
+    assert (abs(a + 3.0) < 0.5) is (level > 0) and b == 0.0
     assert not any(evs for _, evs in log)
 
 
@@ -141,7 +146,7 @@ def test_a_steady_drift_is_followed_closely(gain):
     plane = lambda i: 1000.0 - max(0, i - 45) * rate  # noqa: E731
     n = 45 + int(20 * FPS)
     empty = np.zeros((480, 640), np.float32)
-    cfg = PipelineConfig().replace(adapt={"drift_gain": gain})
+    cfg = PipelineConfig().replace(adapt={"drift_gain": gain}, surface={"level_limit_mm": 0.0})
     p, log = run([lambda k: empty] * n, config=cfg, plane=plane)
     lag = abs(float(np.median(p.surface.bounds.surface_mm)) - plane(n - 1))
     # measured: 0.24 mm with the stripe offset, 2.04 mm with the slow follow alone (half a Tl;

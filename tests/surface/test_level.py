@@ -89,7 +89,7 @@ def test_the_leveller_takes_its_reference_from_the_first_frame_and_holds_when_co
 def test_the_setting_is_checked():
     with pytest.raises(ConfigError, match="surface.level_limit_mm"):
         PipelineConfig().replace(surface={"level_limit_mm": -1.0})
-    assert PipelineConfig().surface.level_limit_mm == 0.0
+    assert PipelineConfig().surface.level_limit_mm == 15.0
 
 
 def _run(rec, limit):
@@ -111,3 +111,16 @@ def test_a_breathing_time_of_flight_frame_keeps_its_touches_only_when_levelled()
     assert off.surface.relearns >= 1 and off.stats.disturbed_frames > 10
     assert on.surface.relearns == 0 and on.stats.disturbed_frames == 0
     assert downs == 5  # the scene's five taps
+
+
+@pytest.mark.parametrize("level", [0.0, 15.0])
+def test_frames_that_move_while_the_surface_is_learned_leave_its_noise_as_it_is(level):
+    rng = np.random.default_rng(5)
+    K = np.array([[600.0, 0, 319.5], [0, 600.0, 239.5], [0, 0, 1]])
+    p = Pipeline(PipelineConfig().replace(surface={"level_limit_mm": level}), surface_frames=45)
+    shifts = rng.choice([-3.0, 0.0, 3.0], 45)  # whole frames 3 mm off now and then
+    for i in range(45):
+        d = np.rint(1000.0 + shifts[i] + rng.normal(0, 1.5, (480, 640))).astype(np.uint16)
+        p.process(Frame(d, i / 30.0, i, 0.001, K))
+    sigma = float(np.median(p.surface.bounds.sigma_mm))
+    assert (sigma < 1.8) is (level > 0)  # 1.5 mm of noise; 2.9 mm with the shifts in it
