@@ -31,8 +31,7 @@ SETTINGS = {"tracking": {"weak_evidence": 1.0, "attach_max_mm": 0.0, "step_max_m
                          "enclosed_share_max": 1.0, "up_held_frames": 0},
             "touchpoints": {"tip_tl_shift": 0.0, "tip_shift_mm": 0.0, "tip_beside_px": 1000.0},
             "regions": {"open_tip_px": 4.0, "block_tip_px": 4.0, "open_band_px": 0.0},
-            "filter": {"name": "adaptive"}, "adapt": {"drift_gain": 0.0, "edge_outside": False},
-            "surface": {"level_limit_mm": 0.0}}
+            "filter": {"name": "adaptive"}, "adapt": {"drift_gain": 0.0, "edge_outside": False}}
 #: depth px -> screen px: a mild projective map onto a 1920x1080 screen
 H = np.array([[3.1, 0.12, -40.0], [-0.05, 2.3, 25.0], [1.0e-5, 2.0e-5, 1.0]])
 

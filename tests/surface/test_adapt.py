@@ -126,7 +126,8 @@ def test_a_hand_whose_arm_enters_across_the_band_without_depth_is_never_absorbed
 @pytest.mark.parametrize("level", [0.0, 15.0])
 def test_slow_drift_is_absorbed(level):
     # the table comes 3 mm closer over 10 s (a thermal drift is slower still), then stays:
-    # followed by the surface adapter, or (levelling, the default) taken off every frame
+    # followed by the surface adapter, or (levelling, surface.level_limit_mm) taken off every
+    # frame
     n_drift = int(10 * FPS)
     plane = lambda i: 1000.0 - min(max(0, i - 45), n_drift) * 3.0 / n_drift  # noqa: E731
     empty = np.zeros((480, 640), np.float32)
