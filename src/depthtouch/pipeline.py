@@ -238,10 +238,22 @@ class Pipeline:
         return out
 
     def _relearn(self, frame: Frame) -> FrameResult:
-        log.warning(
-            "frame %d: most of the surface changed and stays changed (camera moved?); "
-            "learning the surface again, no touches meanwhile", frame.index,
-        )
+        whole = (self.surface.offset_as_a_whole(frame)
+                 if self.config.surface.level_limit_mm == 0 else None)
+        if whole is not None and abs(whole) >= 1.0:
+            # the frame moved as a whole: a camera that did not move but whose depth steps
+            log.warning(
+                "frame %d: most of the surface changed at once, the whole frame %.1f mm %s "
+                "(camera moved, or its depth stepped as a whole: if it did not move, set "
+                "surface.level_limit_mm = 15, docs/config.md); learning the surface again, "
+                "no touches meanwhile", frame.index, abs(whole),
+                "farther" if whole > 0 else "nearer",
+            )
+        else:
+            log.warning(
+                "frame %d: most of the surface changed and stays changed (camera moved?); "
+                "learning the surface again, no touches meanwhile", frame.index,
+            )
         events = self._events(frame, self._tracker.end_all())
         self.surface.relearn()
         self._filter.reset()

@@ -101,12 +101,16 @@ def _run(rec, limit):
     return p, downs
 
 
-def test_a_breathing_time_of_flight_frame_keeps_its_touches_only_when_levelled():
+def test_a_breathing_time_of_flight_frame_keeps_its_touches_only_when_levelled(caplog):
     # a ToF camera's frame steps by 2-4 mm for seconds at a time: the bump check sees the whole
     # surface change and learns it again, touches off meanwhile; levelled, nothing of that
     rec = render_scene("taps", camera="kinect-v2-hard", distance_m=1.2, tilt_deg=20, seed=3,
                        breathing_mm=2.0)
-    off, _ = _run(rec, 0.0)
+    with caplog.at_level("WARNING"):
+        off, _ = _run(rec, 0.0)
+    # the message names the setting that would have kept the touches
+    assert any("whole frame" in r.message and "surface.level_limit_mm = 15" in r.message
+               for r in caplog.records)
     on, downs = _run(rec, 15.0)
     assert off.surface.relearns >= 1 and off.stats.disturbed_frames > 10
     assert on.surface.relearns == 0 and on.stats.disturbed_frames == 0

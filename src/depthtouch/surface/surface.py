@@ -22,7 +22,7 @@ from ..types import Frame
 from .adapt import SurfaceAdapter
 from .bounds import TIP_TOP_MM, BandBounds, band_bounds, height_mm, noisy_share
 from .gate import LearningGate
-from .level import Leveller
+from .level import Leveller, frame_offset, reference_stats
 from .model import SurfaceLearner, SurfaceModel
 
 log = logging.getLogger(__name__)
@@ -226,6 +226,22 @@ class Surface:
             return frame
         depth = lev.update(frame.depth, frame.depth_scale_m * 1000.0)
         return frame if depth is frame.depth else dataclasses.replace(frame, depth=depth)
+
+    def offset_as_a_whole(self, frame: Frame, limit_mm: float = 50.0) -> float | None:
+        """How far (mm, the largest over the surface) the frame lies from the surface as a
+        whole (:func:`.level.frame_offset`, a shift and a part growing with the depth squared),
+        or None when it cannot be measured (too much covered, or farther than ``limit_mm``).
+        A read-only question, for a message when the surface changed at once."""
+        if self._bounds is None:
+            return None
+        ref = self._bounds.surface_mm
+        to_mm = frame.depth_scale_m * 1000.0
+        med, (q0, q1) = reference_stats(ref)
+        off = frame_offset(frame.depth, ref, to_mm, limit_mm=limit_mm, ref_median_mm=med)
+        if off is None:
+            return None
+        a, b = off
+        return max(a + b * q0, a + b * q1, key=abs)
 
     @property
     def level_offset_mm(self) -> tuple[float, float]:
