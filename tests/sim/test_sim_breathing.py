@@ -74,3 +74,17 @@ def test_a_suite_group_takes_breathing_mm(tmp_path):
     p.write_text(p.read_text().replace("2.5", "11"))
     with pytest.raises(ConfigError, match="breathing_mm"):
         load_suite(str(p))
+
+
+def test_the_sim_command_writes_a_breathing_recording_and_refuses_it_with_views(tmp_path, capsys):
+    from depthtouch.cli import main
+
+    out, truth = tmp_path / "b.npz", tmp_path / "b.json"
+    assert main(["sim", "taps", "--camera", "kinect-v2", "--resolution-scale", "0.5",
+                 "--breathing-mm", "2", "--out", str(out), "--truth", str(truth), "-q"]) == 0
+    import json
+    doc = json.loads(truth.read_text())
+    assert doc["breathing_mm"] == 2.0 and "global_offset_mm" in doc["frames"][0]
+    assert main(["sim", "taps", "--views", "2", "--breathing-mm", "2",
+                 "--out", str(tmp_path / "v"), "--truth", str(tmp_path / "v.json")]) == 2
+    assert "--breathing-mm applies to one camera" in capsys.readouterr().err
