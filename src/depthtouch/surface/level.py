@@ -137,6 +137,7 @@ def _fit(depth: np.ndarray, ref_mm: np.ndarray, ref_median_mm: float, to_mm: flo
     # does not flicker with the noise
     sigma = 1.4826 * mad
     db = 0.0
+    ml = 0.0
     if nl >= 8 and nh >= 8 and sqh / nh - sql / nl >= 2.0 * _MIN_Q_SPREAD:
         ml = _hist_median(lo, nl, -limit_mm, limit_mm, bins)
         mh = _hist_median(hi, nh, -limit_mm, limit_mm, bins)
@@ -160,17 +161,16 @@ def _fit(depth: np.ndarray, ref_mm: np.ndarray, ref_median_mm: float, to_mm: flo
 def _level(depth: np.ndarray, ref_mm: np.ndarray, ref_median_mm: float, a: float, b: float,
            to_units: float, out: np.ndarray) -> None:
     h, w = depth.shape
-    inv2 = 1.0 / (ref_median_mm * ref_median_mm)
+    # in units, rounded half up: c = a' + b' s^2 (+ 0.5), s the reference depth
+    a0 = (a - b) * to_units + 0.5
+    b2 = b * to_units / (ref_median_mm * ref_median_mm)
     for y in range(h):
         for x in range(w):
-            d = depth[y, x]
-            if d == 0:
-                out[y, x] = 0
-                continue
-            s = ref_mm[y, x]
-            q = s * s * inv2 - 1.0 if s > 0.0 else 0.0
-            v = d - round((a + b * q) * to_units)
-            out[y, x] = min(max(v, 1), 65535)
+            d = np.int64(depth[y, x])
+            s = np.float64(ref_mm[y, x])
+            c = a0 + b2 * s * s if s > 0.0 else a0 + b * to_units
+            v = d - np.int64(math.floor(c))
+            out[y, x] = 0 if d == 0 else min(max(v, 1), 65535)
 
 
 def frame_offset(depth: np.ndarray, ref_mm: np.ndarray, to_mm: float, *,
