@@ -283,6 +283,19 @@ def _analysis(rows: list) -> list[str]:
         " (p95 2.46), 0.64 ms without touches, against 1.30 and 0.53 ms in session 50's table,"
         " while OpenCV's reference pass below read 1.045 ms against 0.732: the machine that"
         " hour, about 40 % slower across the board, not the code (the paired runs above).",
+        "- Session 52 ran on an AMD EPYC VM again (as sessions 44-49; this checkout's fresh "
+        "install brought OpenCV 5.1.0 instead of 5.0.0): `make bench` read 640x480 with 5 "
+        "touches 0.827 ms (p95 1.296) and 0.291 ms without touches, the table above, against "
+        "0.605-0.666 ms in sessions 44-49 on that kind of machine, while OpenCV's reference "
+        "pass below read 0.711 ms against 0.621-0.639: the machine that hour and the library,"
+        " under the 1.0 ms target. The session's change on the per-frame path is one call "
+        "that returns at once while levelling (`surface.level_limit_mm`, off by default) is "
+        "off. On, paired blocks taking turns (640x480, 5 touches, 8 rounds of 55 frames): "
+        "0.99 ms off, 1.15 ms on (the offset measured on ~4800 pixels, every 4th of every "
+        "16th row, with three histogram medians), 1.31 ms on with every frame 3 mm off (the "
+        "compiled correction pass over the frame as well); an earlier version with numpy's "
+        "quickselect medians took 0.20 ms for the measurement alone on an 848x480 frame "
+        "against 0.06-0.08 ms with histograms.",
         "- The fingertip kernel reads small windows of six per-pixel surface arrays that the "
         "full-frame passes (median, band) push out of the cache each frame: the same call takes "
         "about half the time on warm data. Memory, not arithmetic, is most of what is left.",
