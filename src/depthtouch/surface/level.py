@@ -38,13 +38,15 @@ import math
 import numba
 import numpy as np
 
-#: the grid's step, pixels
+#: the grid: every STEP_PX / 2-th pixel of every 2 STEP_PX-th row (as many pixels as every 8th
+#: of every 8th row, from half as many rows: fewer cache lines read)
 STEP_PX = 8
 #: inliers lie within this many robust standard deviations of the median difference
 _K_SIGMA = 3.0
-#: a change of the offset is followed when it exceeds this many of its standard errors (from
-#: the fit's residuals as if they were independent; measured from frame to frame, the fit
-#: spreads 0.9-1.3 times that on still recordings, and a hand arriving moves ``b`` by up to 5)
+#: a change of the offset is followed when it exceeds this many of its standard errors (of a
+#: median, 1.25 robust sigma / sqrt(n), as if the pixels were independent; a least-squares fit
+#: of still recordings spread 0.9-1.3 times its own such error from frame to frame, and a hand
+#: arriving moved its ``b`` by up to 5)
 _K_CHANGE = 6.0
 #: the share of the usable grid pixels a frame must leave to be measured
 _MIN_SHARE = 0.25
