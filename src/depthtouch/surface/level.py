@@ -38,6 +38,8 @@ import math
 import numba
 import numpy as np
 
+from .adapt import median_f32
+
 #: the grid: every STEP_PX / 2-th pixel of every 2 STEP_PX-th row (as many pixels as every 8th
 #: of every 8th row, from half as many rows: fewer cache lines read)
 STEP_PX = 8
@@ -55,25 +57,6 @@ _MIN_Q_SPREAD = 0.02
 
 
 @numba.njit(cache=True, nogil=True)
-def _hist_median(v: np.ndarray, n: int, lo: float, hi: float, bins: np.ndarray) -> float:
-    """The median of ``v[:n]`` (all within [lo, hi]) to within a bin of ``(hi - lo) / len(bins)``
-    (a histogram: a quickselect's data-dependent branches cost several times more here)."""
-    nb = bins.shape[0]
-    bins[:] = 0
-    width = (hi - lo) / nb
-    for i in range(n):
-        k = int((v[i] - lo) / width)
-        bins[min(max(k, 0), nb - 1)] += 1
-    half = 0.5 * n
-    c = 0
-    for k in range(nb):
-        if c + bins[k] >= half:
-            return lo + (k + (half - c) / max(bins[k], 1)) * width
-        c += bins[k]
-    return hi
-
-
-@numba.njit(cache=True, nogil=True)
 def _fit(depth: np.ndarray, ref_mm: np.ndarray, ref_median_mm: float, to_mm: float,
          prev_a: float, prev_b: float, limit_mm: float, step: int
          ) -> tuple[float, float, int, int]:
@@ -82,7 +65,7 @@ def _fit(depth: np.ndarray, ref_mm: np.ndarray, ref_median_mm: float, to_mm: flo
     h, w = depth.shape
     sy, sx = 2 * step, max(step // 2, 1)  # fewer rows, more columns: fewer cache lines read
     m = ((h + sy - 1) // sy) * ((w + sx - 1) // sx)
-    dv = np.empty(m, np.float64)
+    dv = np.empty(m, np.float32)
     qv = np.empty(m, np.float64)
     inv2 = 1.0 / (ref_median_mm * ref_median_mm)
     n = 0
@@ -105,17 +88,18 @@ def _fit(depth: np.ndarray, ref_mm: np.ndarray, ref_median_mm: float, to_mm: flo
             n += 1
     if n < 8 or n < _MIN_SHARE * usable:
         return np.nan, np.nan, n, usable
-    bins = np.empty(512, np.int64)
-    med = _hist_median(dv, n, -limit_mm, limit_mm, bins)
-    av = np.empty(n, np.float64)
+    # medians without a branch on the data (a quickselect's cost several times more here)
+    lo_mm, hi_mm = np.float32(-limit_mm - 1.0), np.float32(limit_mm + 1.0)
+    med = median_f32(dv[:n], lo_mm, hi_mm)
+    av = np.empty(n, np.float32)
     for i in range(n):
         av[i] = abs(dv[i] - med)
-    mad = _hist_median(av, n, 0.0, 2.0 * limit_mm, bins)
+    mad = median_f32(av, np.float32(0.0), np.float32(2.0 * limit_mm + 2.0))
     tol = max(_K_SIGMA * 1.4826 * mad, 0.5)
     # medians, not means: the surface is each pixel's median over the learning frames, and where
     # the noise is skewed (it grows with the depth) a mean would drift away from it with q
-    lo = np.empty(n, np.float64)
-    hi = np.empty(n, np.float64)
+    lo = np.empty(n, np.float32)
+    hi = np.empty(n, np.float32)
     nl = 0
     nh = 0
     sql = 0.0
@@ -141,8 +125,8 @@ def _fit(depth: np.ndarray, ref_mm: np.ndarray, ref_median_mm: float, to_mm: flo
     db = 0.0
     ml = 0.0
     if nl >= 8 and nh >= 8 and sqh / nh - sql / nl >= 2.0 * _MIN_Q_SPREAD:
-        ml = _hist_median(lo, nl, -limit_mm, limit_mm, bins)
-        mh = _hist_median(hi, nh, -limit_mm, limit_mm, bins)
+        ml = median_f32(lo[:nl], lo_mm, hi_mm)
+        mh = median_f32(hi[:nh], lo_mm, hi_mm)
         dq = sqh / nh - sql / nl
         db = (mh - ml) / dq
         se_b = 1.2533 * sigma * math.sqrt(1.0 / nl + 1.0 / nh) / dq
@@ -153,7 +137,7 @@ def _fit(depth: np.ndarray, ref_mm: np.ndarray, ref_median_mm: float, to_mm: flo
     else:
         for i in range(nh):
             lo[nl + i] = hi[i]
-        da = _hist_median(lo, k, -limit_mm, limit_mm, bins)
+        da = median_f32(lo[:k], lo_mm, hi_mm)
         if abs(da) < _K_CHANGE * 1.2533 * sigma / math.sqrt(k):
             da = 0.0
     return prev_a + da, prev_b + db, k, usable
