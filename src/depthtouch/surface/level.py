@@ -52,7 +52,8 @@ _K_SIGMA = 3.0
 _K_CHANGE = 6.0
 #: the share of the usable grid pixels a frame must leave to be measured
 _MIN_SHARE = 0.25
-#: the spread of q below which the fit is a plain shift (b = 0)
+#: ``b`` is measured only where the mean q of the farther half lies at least twice this above
+#: the nearer half's (else the offset is a plain shift, b = 0)
 _MIN_Q_SPREAD = 0.02
 
 
