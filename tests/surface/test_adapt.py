@@ -123,20 +123,22 @@ def test_a_hand_whose_arm_enters_across_the_band_without_depth_is_never_absorbed
     assert [e.state for e in events].count("down") == 1
 
 
-@pytest.mark.parametrize("level", [0.0, 15.0])
-def test_slow_drift_is_absorbed(level):
+@pytest.mark.parametrize("level, engage", [(0.0, 1.0), (15.0, 0.0), (15.0, 1.0)])
+def test_slow_drift_is_absorbed(level, engage):
     # the table comes 3 mm closer over 10 s (a thermal drift is slower still), then stays:
-    # followed by the surface adapter, or (levelling, surface.level_limit_mm) taken off every
-    # frame
+    # followed by the surface adapter: without levelling, and with it as by default (a
+    # drift never moves the frame 1 mm from the adapted surface, so levelling does not
+    # engage); levelling that is always engaged (level_engage_mm 0) takes it off every frame
     n_drift = int(10 * FPS)
     plane = lambda i: 1000.0 - min(max(0, i - 45), n_drift) * 3.0 / n_drift  # noqa: E731
     empty = np.zeros((480, 640), np.float32)
-    cfg = PipelineConfig().replace(surface={"level_limit_mm": level})
+    cfg = PipelineConfig().replace(surface={"level_limit_mm": level,
+                                            "level_engage_mm": engage})
     p, log = run([lambda k: empty] * int(20 * FPS), config=cfg, plane=plane)
     assert not p.learning and p.stats.relearns == 0
     a, b = p.surface.level_offset_mm
     assert abs(float(np.median(p.surface.bounds.surface_mm)) + a - 997.0) < 1.0
-    assert (abs(a + 3.0) < 0.5) is (level > 0) and b == 0.0
+    assert (abs(a + 3.0) < 0.5) is (level > 0 and engage == 0) and b == 0.0
     assert not any(evs for _, evs in log)
 
 

@@ -59,6 +59,32 @@ def test_nothing_changes_when_the_offset_rounds_to_no_unit():
     assert level_depth(d, ref, 1.0, off) is d
 
 
+def test_levelling_engages_past_its_threshold_and_lets_go_once_nothing_is_left():
+    # engage_mm 1.0: a frame 0.6 mm off passes as it is (a drift the adapter follows); one
+    # 1.5 mm off engages levelling, which then takes off smaller offsets too, and lets go
+    # 3 s after the offset last reached 1 mm, once it rounds to nothing
+    ref = TILTED.copy()
+    lev = Leveller(15.0, engage_mm=1.0)
+    lev.use_reference(ref)
+    d = frame(ref, 0.6, seed=2)
+    assert lev.update(d, 1.0, 0.1) is d and not lev.engaged
+    out = lev.update(frame(ref, 1.5, seed=3), 1.0, 0.2)
+    assert lev.engaged and lev.offset_mm[0] == pytest.approx(1.5, abs=0.3)
+    assert abs(float(np.median(out[400:].astype(np.float64) - ref[400:]))) <= 0.6
+    d = frame(ref, 0.7, seed=4)
+    out = lev.update(d, 1.0, 2.0)  # still engaged: 0.7 mm rounds to a unit taken off
+    assert lev.engaged and out is not d
+    d = frame(ref, 0.7, seed=5)
+    out = lev.update(d, 1.0, 3.5)  # 3 s on, but a unit is still to take off: holds
+    assert lev.engaged and out is not d
+    d = frame(ref, 0.0, seed=6)
+    assert lev.update(d, 1.0, 3.6) is d and not lev.engaged
+    always = Leveller(15.0)  # engage_mm 0: levels whatever rounds to a unit
+    always.use_reference(ref)
+    d = frame(ref, 0.7, seed=7)
+    assert always.engaged and always.update(d, 1.0, 0.1) is not d
+
+
 def test_a_covered_frame_is_not_measured_and_a_far_jump_is_not_followed():
     ref = TILTED.copy()
     d = frame(ref, 3.0, hand=False)
@@ -89,7 +115,11 @@ def test_the_leveller_takes_its_reference_from_the_first_frame_and_holds_when_co
 def test_the_setting_is_checked():
     with pytest.raises(ConfigError, match="surface.level_limit_mm"):
         PipelineConfig().replace(surface={"level_limit_mm": -1.0})
-    assert PipelineConfig().surface.level_limit_mm == 0.0  # off: it failed its held-out rule
+    with pytest.raises(ConfigError, match="surface.level_engage_mm"):
+        PipelineConfig().replace(surface={"level_engage_mm": 25.0})
+    # on, engaged once the frame moved by 1 mm: judged held out in session 53
+    assert PipelineConfig().surface.level_limit_mm == 15.0
+    assert PipelineConfig().surface.level_engage_mm == 1.0
 
 
 def _run(rec, limit):

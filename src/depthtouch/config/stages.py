@@ -27,8 +27,11 @@ class SurfaceConfig:
     level_limit_mm: levelling (:mod:`depthtouch.surface.level`): each frame's offset as a whole
         from the surface (a shift, and one growing with the depth squared) is measured on a
         sparse grid and taken off before the frame meets the surface, following offsets up to
-        this far from the previous frame's (0 = off, the default; 15 follows a 2 mm breathing;
+        this far from the previous frame's (default 15, which follows a 2 mm breathing; 0 = off;
         range [0, 100]).
+    level_engage_mm: levelling engages once the frame's shift as a whole reaches this, and
+        lets go 3 s after it last did (a slow drift stays under it: the surface adapter's, as
+        without levelling; 0 = always engaged; default 1.0, range [0, 20]).
     """
 
     learn_s: float = 1.5
@@ -37,7 +40,8 @@ class SurfaceConfig:
     min_valid_fraction: float = 0.5
     noise_floor_mm: float = 0.5
     relearn_s: float = 0.5
-    level_limit_mm: float = 0.0
+    level_limit_mm: float = 15.0
+    level_engage_mm: float = 1.0
 
     def validate(self) -> None:
         _range("surface.learn_s", self.learn_s, 0.0, 60.0, lo_open=True)
@@ -51,6 +55,7 @@ class SurfaceConfig:
         _range("surface.min_valid_fraction", self.min_valid_fraction, 0.0, 1.0, lo_open=True)
         _range("surface.noise_floor_mm", self.noise_floor_mm, 0.0, 50.0)
         _range("surface.level_limit_mm", self.level_limit_mm, 0.0, 100.0)
+        _range("surface.level_engage_mm", self.level_engage_mm, 0.0, 20.0)
 
 
 @dataclass(frozen=True)

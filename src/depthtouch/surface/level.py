@@ -25,6 +25,16 @@ of its own uncertainty (6 standard errors of a median): on a still camera the of
 pixel (rounded to the camera's units; missing pixels stay missing), only when it reaches half
 a unit somewhere.
 
+Levelling engages only once the shift ``a`` (the offset at the reference's median depth)
+reaches ``engage_mm``, and stays engaged while the frames keep moving: until :data:`HOLD_S`
+seconds have passed without ``|a|`` reaching ``engage_mm`` and the offset rounds to nothing
+everywhere (so the frames do not jump when it lets go). The surface adapter follows a slow
+drift within a millimetre (``|a|`` up to 0.92 mm behind a ToF camera's 0.5 mm/s warm-up), so a
+drift alone does not engage it and such recordings pass unchanged, the adapter's as before.
+The shift, not the offset at the view's nearest or farthest pixel: ``b`` rests on the medians
+of two halves of integer depths, which step by a unit at a time, and a hand arriving in one
+half moves it (on a ToF recording, ``b`` read -1.8 .. +1.0 mm while the frame drifted by 0.5 mm).
+
 A frame too covered to measure (fewer than a quarter of the usable grid pixels left) keeps the
 previous offset. An offset farther than ``limit_mm`` from the previous one is not followed:
 the camera moved, and the bump check learns the surface again. :class:`Leveller` keeps the
@@ -52,6 +62,8 @@ _K_SIGMA = 3.0
 _K_CHANGE = 6.0
 #: the share of the usable grid pixels a frame must leave to be measured
 _MIN_SHARE = 0.25
+#: levelling stays engaged this long after the offset last reached ``engage_mm`` (s)
+HOLD_S = 3.0
 #: ``b`` is measured only where the mean q of the farther half lies at least twice this above
 #: the nearer half's (else the offset is a plain shift, b = 0)
 _MIN_Q_SPREAD = 0.02
@@ -211,10 +223,13 @@ class Leveller:
     """Keeps the reference and the previous offset; :meth:`update` levels each frame.
 
     limit_mm: the farthest a frame's offset may lie from the previous one and be followed.
+    engage_mm: levelling engages once the shift ``|a|`` reaches this, and lets go
+    :data:`HOLD_S` after it last did, once the offset rounds to nothing (0: always engaged).
     """
 
-    def __init__(self, limit_mm: float) -> None:
+    def __init__(self, limit_mm: float, engage_mm: float = 0.0) -> None:
         self.limit_mm = float(limit_mm)
+        self.engage_mm = float(engage_mm)
         self.reset()
 
     def reset(self) -> None:
@@ -224,6 +239,8 @@ class Leveller:
         self._q_range = (0.0, 0.0)
         self.offset_mm: tuple[float, float] = (0.0, 0.0)
         self.measured = False
+        self._last_reach_s = -math.inf
+        self.engaged = self.engage_mm <= 0.0
 
     @property
     def has_reference(self) -> bool:
@@ -235,10 +252,13 @@ class Leveller:
         self._ref = ref_mm
         self._med, self._q_range = reference_stats(ref_mm)
         self.offset_mm = (0.0, 0.0)
+        self._last_reach_s = -math.inf
+        self.engaged = self.engage_mm <= 0.0
 
-    def update(self, depth: np.ndarray, to_mm: float) -> np.ndarray:
-        """The frame levelled against the reference (``depth`` itself when nothing moves). The
-        first frame without a reference becomes it (in mm), and comes back as it is."""
+    def update(self, depth: np.ndarray, to_mm: float, t: float = 0.0) -> np.ndarray:
+        """The frame (taken at ``t`` s) levelled against the reference (``depth`` itself when
+        nothing moves or levelling is not engaged). The first frame without a reference becomes
+        it (in mm), and comes back as it is."""
         if self._ref is None:
             self.use_reference(np.where(depth > 0, depth.astype(np.float32) * np.float32(to_mm),
                                         np.float32(0.0)))
@@ -249,4 +269,16 @@ class Leveller:
         self.measured = off is not None
         if off is not None:
             self.offset_mm = off
+        if self.engage_mm > 0.0:
+            a, b = self.offset_mm
+            q0, q1 = self._q_range
+            largest = max(abs(a + b * q0), abs(a + b * q1))
+            if abs(a) >= self.engage_mm:
+                self._last_reach_s = t
+                self.engaged = True
+            elif (self.engaged and t - self._last_reach_s > HOLD_S
+                  and largest / to_mm < 0.5):
+                self.engaged = False
+            if not self.engaged:
+                return depth
         return level_depth(depth, self._ref, to_mm, self.offset_mm, self._med, self._q_range)

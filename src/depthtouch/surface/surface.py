@@ -59,7 +59,8 @@ class Surface:
         self._bounds: BandBounds | None = None
         self._adapter: SurfaceAdapter | None = None
         lim = config.surface.level_limit_mm
-        self._leveller = Leveller(lim) if lim > 0 else None
+        self._leveller = (Leveller(lim, config.surface.level_engage_mm) if lim > 0
+                          else None)
         self.relearns = 0
         if model is not None:
             self.use(model)
@@ -210,7 +211,8 @@ class Surface:
                 return False
         if self._leveller is not None:
             frame = dataclasses.replace(
-                frame, depth=self._leveller.update(frame.depth, frame.depth_scale_m * 1000.0))
+                frame, depth=self._leveller.update(frame.depth, frame.depth_scale_m * 1000.0,
+                                                   frame.timestamp_s))
         model = self._learner.update(frame)
         if model is None:
             return False
@@ -224,7 +226,7 @@ class Surface:
         lev = self._leveller
         if lev is None or self._bounds is None:
             return frame
-        depth = lev.update(frame.depth, frame.depth_scale_m * 1000.0)
+        depth = lev.update(frame.depth, frame.depth_scale_m * 1000.0, frame.timestamp_s)
         return frame if depth is frame.depth else dataclasses.replace(frame, depth=depth)
 
     def offset_as_a_whole(self, frame: Frame, limit_mm: float = 50.0) -> float | None:
