@@ -51,6 +51,18 @@ def test_a_disparity_shift_grows_with_the_depth_squared_and_is_taken_off():
     assert (out[d == 0] == 0).all()  # missing stays missing
 
 
+@pytest.mark.parametrize("a", [3.0, -2.5, 1.49, -40.0])
+def test_a_plain_shift_is_taken_off_as_the_array_formula_says(a):
+    # the compiled pass's shortcut for b = 0 (the reference not read) against numpy
+    ref = TILTED.copy()
+    d = frame(ref, 0.0)
+    d[0, :4] = [0, 1, 2, 65535]
+    out = level_depth(d, ref, 1.0, (a, 0.0))
+    k = np.floor(a + 0.5)
+    expect = np.where(d == 0, 0, np.clip(d.astype(np.int64) - k, 1, 65535))
+    assert out.dtype == np.uint16 and np.array_equal(out, expect)
+
+
 def test_nothing_changes_when_the_offset_rounds_to_no_unit():
     ref = TILTED.copy()
     d = frame(ref, 0.0)

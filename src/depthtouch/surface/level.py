@@ -163,6 +163,13 @@ def _level(depth: np.ndarray, ref_mm: np.ndarray, ref_median_mm: float, a: float
     # in units, rounded half up: c = a' + b' s^2 (+ 0.5), s the reference depth
     a0 = (a - b) * to_units + 0.5
     b2 = b * to_units / (ref_median_mm * ref_median_mm)
+    if b == 0.0:  # a plain shift (a ToF camera, a flat view): the reference is not read
+        k = np.int64(math.floor(a0))
+        for y in range(h):
+            for x in range(w):
+                d = np.int64(depth[y, x])
+                out[y, x] = 0 if d == 0 else min(max(d - k, 1), 65535)
+        return
     for y in range(h):
         for x in range(w):
             d = np.int64(depth[y, x])
