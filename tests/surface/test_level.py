@@ -91,6 +91,10 @@ def test_levelling_engages_past_its_threshold_and_lets_go_once_nothing_is_left()
     assert lev.engaged and out is not d
     d = frame(ref, 0.0, seed=6)
     assert lev.update(d, 1.0, 3.6) is d and not lev.engaged
+    lev.update(frame(ref, 1.5, seed=8), 1.0, 4.0)
+    assert lev.engaged
+    d = frame(ref, 0.0, seed=9)
+    assert lev.update(d, 1.0, 0.0) is d and not lev.engaged  # a replay from its start
     always = Leveller(15.0)  # engage_mm 0: levels whatever rounds to a unit
     always.use_reference(ref)
     d = frame(ref, 0.7, seed=7)

@@ -283,8 +283,8 @@ class Leveller:
             if abs(a) >= self.engage_mm:
                 self._last_reach_s = t
                 self.engaged = True
-            elif (self.engaged and t - self._last_reach_s > HOLD_S
-                  and largest / to_mm < 0.5):
+            elif (self.engaged and not 0.0 <= t - self._last_reach_s <= HOLD_S
+                  and largest / to_mm < 0.5):  # (time going back: a replay from its start)
                 self.engaged = False
             if not self.engaged:
                 return depth
