@@ -306,7 +306,8 @@ def _analysis(rows: list) -> list[str]:
         '(about 18 µs each); the level stage timed inside the pipeline (640x480, 5 touches, 540 '
         'frames): 0.120 ms a frame not engaged, 0.279 ms engaged with every frame 3 mm off, '
         'before the correction pass for a plain shift stopped reading the reference (that pass '
-        "alone 109 -> 43 µs, the same output). `make bench` at the session's start (levelling "
+        "alone 109 -> 43 µs, the same output; after it 0.133-0.162 ms engaged). `make bench` "
+        "at the session's start (levelling "
         'off, the code of 2fee989) read 640x480 with 5 touches 1.174 ms (p95 1.844) and 0.324 ms '
         'without touches, median + surface update 0.266 ms; with levelling on, the table above: '
         '1.219 ms (p95 1.625) and 0.400 ms, median + surface update 0.377 ms (+0.11 ms, the '
