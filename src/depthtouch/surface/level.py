@@ -207,12 +207,18 @@ def level_depth(depth: np.ndarray, ref_mm: np.ndarray, to_mm: float, offset: tup
     if ref_median_mm is None or q_range is None:
         ref_median_mm, q_range = reference_stats(ref_mm)
     a, b = offset
-    largest = max(abs(a + b * q_range[0]), abs(a + b * q_range[1]))
-    if not ref_median_mm > 0.0 or largest / to_mm < 0.5:
+    if not ref_median_mm > 0.0 or abs(extreme_offset_mm(offset, q_range)) / to_mm < 0.5:
         return depth
     out = np.empty_like(depth)
     _level(depth, ref_mm, float(ref_median_mm), float(a), float(b), 1.0 / float(to_mm), out)
     return out
+
+
+def extreme_offset_mm(offset: tuple[float, float], q_range: tuple[float, float]) -> float:
+    """The offset ``a + b q`` (mm) where it is largest over the reference (at one end of
+    ``q_range``), with its sign."""
+    a, b = offset
+    return max(a + b * q_range[0], a + b * q_range[1], key=abs)
 
 
 def reference_stats(ref_mm: np.ndarray) -> tuple[float, tuple[float, float]]:
@@ -277,15 +283,12 @@ class Leveller:
         if off is not None:
             self.offset_mm = off
         if self.engage_mm > 0.0:
-            a, b = self.offset_mm
-            q0, q1 = self._q_range
-            largest = max(abs(a + b * q0), abs(a + b * q1))
-            if abs(a) >= self.engage_mm:
+            if abs(self.offset_mm[0]) >= self.engage_mm:
                 self._last_reach_s = t
                 self.engaged = True
             elif (self.engaged and not 0.0 <= t - self._last_reach_s <= HOLD_S
-                  and largest / to_mm < 0.5):  # (time going back: a replay from its start)
-                self.engaged = False
+                  and abs(extreme_offset_mm(self.offset_mm, self._q_range)) / to_mm < 0.5):
+                self.engaged = False  # (time going back too: a replay from its start)
             if not self.engaged:
                 return depth
         return level_depth(depth, self._ref, to_mm, self.offset_mm, self._med, self._q_range)

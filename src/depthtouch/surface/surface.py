@@ -22,7 +22,7 @@ from ..types import Frame
 from .adapt import SurfaceAdapter
 from .bounds import TIP_TOP_MM, BandBounds, band_bounds, height_mm, noisy_share
 from .gate import LearningGate
-from .level import Leveller, frame_offset, reference_stats
+from .level import Leveller, extreme_offset_mm, frame_offset, reference_stats
 from .model import SurfaceLearner, SurfaceModel
 
 log = logging.getLogger(__name__)
@@ -238,12 +238,9 @@ class Surface:
             return None
         ref = self._bounds.surface_mm
         to_mm = frame.depth_scale_m * 1000.0
-        med, (q0, q1) = reference_stats(ref)
+        med, q_range = reference_stats(ref)
         off = frame_offset(frame.depth, ref, to_mm, limit_mm=limit_mm, ref_median_mm=med)
-        if off is None:
-            return None
-        a, b = off
-        return max(a + b * q0, a + b * q1, key=abs)
+        return None if off is None else extreme_offset_mm(off, q_range)
 
     @property
     def level_offset_mm(self) -> tuple[float, float]:
