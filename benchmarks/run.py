@@ -306,14 +306,17 @@ def _analysis(rows: list) -> list[str]:
         '(about 18 µs each); the level stage timed inside the pipeline (640x480, 5 touches, 540 '
         'frames): 0.120 ms a frame not engaged, 0.279 ms engaged with every frame 3 mm off, '
         'before the correction pass for a plain shift stopped reading the reference (that pass '
-        "alone 109 -> 43 µs, the same output; after it 0.133-0.162 ms engaged). `make bench` "
-        "at the session's start (levelling "
-        'off, the code of 2fee989) read 640x480 with 5 touches 1.174 ms (p95 1.844) and 0.324 ms '
-        'without touches, median + surface update 0.266 ms; with levelling on, the table above: '
-        '1.219 ms (p95 1.625) and 0.400 ms, median + surface update 0.377 ms (+0.11 ms, the '
-        "measurement). Over the 1.0 ms target on this machine that hour either way; OpenCV's "
-        'reference pass below read 0.931 ms in the first run against 0.62-0.64 ms in sessions '
-        '44-49 (and 2.214 ms in the second run, the neighbours during that part).',
+        'alone 109 -> 43 µs, the same output; after it 0.133-0.162 ms engaged). `make bench` at '
+        "the session's start (levelling off, the code of 2fee989) read 640x480 with 5 touches "
+        '1.174 ms (p95 1.844) and 0.324 ms without touches, median + surface update 0.266 ms; '
+        'with levelling on, a second run: 1.219 ms (p95 1.625) and 0.400 ms, median + surface '
+        'update 0.377 ms (+0.11 ms, the measurement), over the 1.0 ms target on this machine that'
+        ' hour either way; after the review (the offset where it is largest asked through one '
+        'helper, the same behaviour) the table above: 0.853 ms (p95 1.170) and 0.358 ms, median +'
+        " surface update 0.287 ms, with OpenCV's reference pass at 0.669 ms: the machine faster "
+        "that hour; OpenCV's reference pass below read 0.931 ms in the first run against "
+        '0.62-0.64 ms in sessions 44-49 (and 2.214 ms in the second run, the neighbours during '
+        'that part).',
         "- The fingertip kernel reads small windows of six per-pixel surface arrays that the "
         "full-frame passes (median, band) push out of the cache each frame: the same call takes "
         "about half the time on warm data. Memory, not arithmetic, is most of what is left.",
