@@ -314,7 +314,7 @@ def _analysis(rows: list) -> list[str]:
         ' hour either way; after the review (the offset where it is largest asked through one '
         'helper, the same behaviour) the table above: 0.853 ms (p95 1.170) and 0.358 ms, median +'
         " surface update 0.287 ms, with OpenCV's reference pass at 0.669 ms: the machine faster "
-        "that hour; OpenCV's reference pass below read 0.931 ms in the first run against "
+        "that hour; OpenCV's reference pass read 0.931 ms in the first run against "
         '0.62-0.64 ms in sessions 44-49 (and 2.214 ms in the second run, the neighbours during '
         'that part).',
         "- The fingertip kernel reads small windows of six per-pixel surface arrays that the "
