@@ -31,6 +31,7 @@ import numpy as np
 
 from depthtouch import __version__
 from depthtouch.config import PipelineConfig
+from depthtouch.evaluation.halves import reasons_text
 from depthtouch.evaluation.metrics import EvalResult
 from depthtouch.evaluation.report import metrics_markdown, plot_xy
 from depthtouch.evaluation.suite import SuiteCase, load_suite
@@ -121,7 +122,8 @@ def _failures(cases: Sequence[SuiteCase], results: Sequence[EvalResult]) -> list
         m = summarize([r])
         why = []
         if m.contact_recall < 0.98:
-            why.append(f"recall {m.contact_recall:.2f}")
+            missed = reasons_text(m.missed_by_reason)
+            why.append(f"recall {m.contact_recall:.2f}" + (f" (missed: {missed})" if missed else ""))
         if m.false_touches:
             bands = ", ".join(f"{k} mm: {v}" if k != "other" else f"other: {v}"
                               for k, v in m.false_by_hover.items() if v)

@@ -182,12 +182,17 @@ def _add_eval(sub: argparse._SubParsersAction) -> None:
         else:
             from rich.console import Console
 
+            from .evaluation.halves import reasons_text
             from .evaluation.report import metrics_table
 
             wide = None if sys.stdout.isatty() else 200  # no terminal: do not squeeze to 80
-            Console(width=wide).print(
-                metrics_table(metrics, title=f"accuracy ({a.suite or 'recording'})")
-            )
+            console = Console(width=wide)
+            console.print(metrics_table(metrics, title=f"accuracy ({a.suite or 'recording'})"))
+            for name, m in metrics.items():
+                if m.missed_by_reason:
+                    console.print(f"{name}: missed {sum(m.missed_by_reason.values())} contacts "
+                                  f"the camera saw; why: {reasons_text(m.missed_by_reason)}",
+                                  highlight=False)
         return 0
 
     p.set_defaults(func=run)

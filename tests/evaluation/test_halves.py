@@ -17,6 +17,7 @@ from depthtouch.evaluation.halves import (
     halves_markdown,
     halves_report,
     late_false_after_change,
+    missed_lines,
     overall_rows,
     placement,
     select_half,
@@ -570,3 +571,26 @@ def test_sixth_check_set_brings_every_arm_in_with_a_body_at_placements_of_its_ow
     for g in {c.group for c in cases}:
         assert {c.hand for c in cases if c.group == g} == {"capsule", "anatomic"}
     _every_group_on_both_halves(cases)
+
+
+def test_missed_contacts_are_named_on_a_rendered_recording_and_in_the_report() -> None:
+    """Stereo at 1.6 m over a table tilted 32 deg (a far scene of the hard suite, where Tl
+    lies above a fingertip): every contact is missed, most frames without a point; each gets
+    a reason, and the report prints them per half."""
+    from depthtouch.evaluation.suiterun import evaluate_case
+    from depthtouch.tracking.evidence import REASONS
+
+    case = SuiteCase("approach", "realsense-d435-hard", 1.6, "plane", 32.0, 1)
+    (res,) = evaluate_case(case)
+    assert not res.ep_found.any() and res.ep_visible.all()
+    assert len(res.ep_miss_reason) == len(res.ep_found) == 4
+    assert set(res.ep_miss_reason) <= {*REASONS, "no point"}
+    assert res.ep_miss_reason.count("no point") >= 3
+    suite = suite_from_dict({"suite": {"name": "t"}, "group": [
+        {"name": "far", "scenes": ["approach"], "cameras": ["realsense-d435-hard"],
+         "distances_m": [1.6], "tilts_deg": [32.0], "seeds": [1], "tags": ["far"]}]})
+    rep = halves_report(suite, list(suite.cases), [res])
+    lines = missed_lines(rep)
+    assert len(lines) == 1 and lines[0].startswith(f"{half_of(case)}: missed 4 contacts")
+    assert "no point" in lines[0]
+    assert any("no point" in line for line in halves_markdown(rep))

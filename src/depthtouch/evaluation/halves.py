@@ -126,6 +126,7 @@ def figures(results: Sequence[EvalResult], far: Sequence[bool],
         "angle_error_deg": _num(m.angle_error_deg),
         "recall_drift": recall(drifting),
         "false_late_after_change": sum(late_false_after_change(r) for r in results),
+        "missed_by_reason": m.missed_by_reason,
     }
 
 
@@ -302,6 +303,23 @@ def fmt(v: Any, spec: str) -> str:
     return spec.format(v)
 
 
+def reasons_text(count: dict[str, int]) -> str:
+    """Counts per reason as text ("no point 3, high step 1"), in their order."""
+    return ", ".join(f"{k} {n}" for k, n in count.items())
+
+
+def missed_lines(report: dict[str, Any]) -> list[str]:
+    """One line per half: its missed contacts by why (:func:`figures`' ``missed_by_reason``;
+    the nearest touch point's reason on most of the contact's visible frames, or "no point")."""
+    out = []
+    for h in HALVES:
+        why = report["overall"].get(h, {}).get("missed_by_reason")
+        if why:
+            out.append(f"{h}: missed {sum(why.values())} contacts the camera saw; why: "
+                       f"{reasons_text(why)}")
+    return out
+
+
 def situation_recall(f: dict[str, Any]) -> Any:
     """A situation's recall: the working-range one, or the far one for far situations."""
     return f.get("recall_working") if f.get("recall_working") is not None else f.get("recall_far")
@@ -389,6 +407,8 @@ def print_halves(suite: str | Path, half: str, *, subset: str | None = None,
     console = Console(width=None if sys.stdout.isatty() else 200)
     overall, rows = halves_tables(report)
     console.print(overall)
+    for line in missed_lines(report):
+        console.print(line, highlight=False)
     if report["situations"]:
         console.print(rows)
     return 0
@@ -445,6 +465,9 @@ def halves_markdown(report: dict[str, Any]) -> list[str]:
     """Markdown lines: the overall figures (halves side by side) and the per-situation table."""
     out = ["| measure | tune | held-out |", "|---|---|---|"]
     out += ["| " + " | ".join(row) + " |" for row in overall_rows(report)]
+    missed = missed_lines(report)
+    if missed:
+        out += ["", *(f"- {line}" for line in missed)]
     if not report["situations"]:
         return out
     heads = [head for _, head, _ in SITUATION_COLS]

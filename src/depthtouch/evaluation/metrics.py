@@ -23,7 +23,7 @@ document) and a list of :class:`~depthtouch.types.TouchEvent`:
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -140,6 +140,10 @@ class EvalResult:
     reported down before its first match while near a hovering fingertip, the highest hover
     height on those frames: it went down in the air and then slid into the contact, which the
     false-touch count does not see (an app saw the touch start above the surface).
+    ep_miss_reason: per episode, why a contact the camera saw was missed ("" when found or
+    hidden throughout; empty without the run's point notes): the most common, over its visible
+    frames, of "no point" (no touch point within the gate) and the nearest point's reason
+    (:func:`depthtouch.tracking.evidence.point_reasons`).
     """
 
     label: str
@@ -170,6 +174,31 @@ class EvalResult:
     change_frames: tuple[int, ...] = ()
     ep_merged: np.ndarray = field(default_factory=lambda: np.zeros(0, bool))
     early_hover_height_mm: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    ep_miss_reason: tuple[str, ...] = ()
+
+
+#: per frame index, the touch points' pixels (N, 2) and a reason per point (a run's notes)
+PointNotes = Mapping[int, tuple[np.ndarray, Sequence[str]]]
+NO_POINT = "no point"
+
+
+def _miss_reason(rows: np.ndarray, truth: Truth, notes: PointNotes, gate_mm: float) -> str:
+    """The most common reason over a missed episode's visible frames (``rows``: its contact
+    rows); ties go to the reason seen first."""
+    count: dict[str, int] = {}
+    for r in rows.tolist():
+        if truth.contact_occluded[r]:
+            continue
+        why = NO_POINT
+        note = notes.get(int(truth.contact_frame[r]))
+        if note is not None and len(note[0]):
+            d, _ = surface_error_mm(note[0], truth.K, truth.contact_p_mm[r:r + 1],
+                                    truth.contact_n[r:r + 1])
+            k = int(np.argmin(d[:, 0]))
+            if d[k, 0] <= gate_mm:
+                why = str(note[1][k])
+        count[why] = count.get(why, 0) + 1
+    return max(count, key=lambda k: count[k]) if count else ""
 
 
 def _episodes(frame: np.ndarray, ids: np.ndarray) -> np.ndarray:
@@ -197,6 +226,7 @@ def evaluate(
     min_still_frames: int = 10,
     timing_ms: Sequence[float] | np.ndarray | None = None,
     label: str = "",
+    point_notes: PointNotes | None = None,
 ) -> EvalResult:
     """Match ``events`` to ``truth`` frame by frame and collect the raw metrics.
 
@@ -375,6 +405,11 @@ def evaluate(
         false_last=false_last,
         early_hover_height_mm=np.asarray(early_h, np.float64),
         change_frames=_change_frames(truth),
+        ep_miss_reason=(() if point_notes is None else tuple(
+            _miss_reason(np.flatnonzero(ep == e), truth, point_notes, gate_mm)
+            if visible_ep and not found_ep else ""
+            for e, (found_ep, visible_ep) in enumerate(zip(out["found"], out["visible"],
+                                                           strict=True)))),
     )
 
 

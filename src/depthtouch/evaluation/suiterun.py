@@ -12,10 +12,12 @@ from collections.abc import Callable, Sequence
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
+import numpy as np
+
 from ..config import PipelineConfig
 from ..errors import ConfigError
 from ..sources.base import ArraySource, DepthSource
-from ..types import FrameResult, TouchEvent
+from ..types import FrameResult, TouchEvent, TouchPoints
 from .metrics import GATE_MM, EvalResult, Truth, evaluate, read_truth
 from .suite import SuiteCase, ensure_recording, load_suite
 from .summary import Metrics, summarize
@@ -23,37 +25,60 @@ from .summary import Metrics, summarize
 
 # --- running -------------------------------------------------------------------------------------
 class EventCollector:
-    """A sink that keeps every event of a run (for the evaluation)."""
+    """A sink that keeps every event of a run (for the evaluation), and with ``explain`` (a
+    reason per touch point of a frame) the notes of every frame with points: its index ->
+    (the points' pixels, their reasons), for :func:`~depthtouch.evaluation.metrics.evaluate`'s
+    ``point_notes``."""
 
-    def __init__(self) -> None:
+    def __init__(self, explain: Callable[[TouchPoints], list[str]] | None = None) -> None:
         self.events: list[TouchEvent] = []
+        self.explain = explain
+        self.notes: dict[int, tuple[np.ndarray, list[str]]] = {}
 
     def send(self, result: FrameResult) -> None:
         self.events.extend(result.events)
+        if self.explain is not None and len(result.points) and not result.learning:
+            self.notes[result.frame.index] = (result.points.xy_px.copy(),
+                                              self.explain(result.points))
 
     def close(self) -> None:
         """Nothing to release."""
 
 
-def run_source(source: DepthSource, config: PipelineConfig | None
+def run_source(source: DepthSource, config: PipelineConfig | None,
+               notes: dict[int, tuple[np.ndarray, list[str]]] | None = None
                ) -> tuple[list[TouchEvent], list[float]]:
-    """Run the sensor over a source; returns (events, ms per frame of the touch path)."""
+    """Run the sensor over a source; returns (events, ms per frame of the touch path). With
+    ``notes``, fills it with why each frame's points counted or not toward a new contact
+    (:class:`EventCollector`; :func:`~depthtouch.tracking.evidence.point_reasons`)."""
     from ..driver import drive
     from ..pipeline import Pipeline
+    from ..tracking.evidence import point_reasons
 
-    collect = EventCollector()
-    stats = drive(source, Pipeline(config), [collect])
+    pipeline = Pipeline(config)
+    cfg = pipeline.config
+
+    def explain(points: TouchPoints) -> list[str]:
+        return point_reasons(points, pipeline.surface.mm_per_px, cfg.tracking,
+                             cfg.touchpoints.touch_on_mm)
+
+    collect = EventCollector(explain if notes is not None else None)
+    stats = drive(source, pipeline, [collect])
+    if notes is not None:
+        notes.update(collect.notes)
     return collect.events, stats.ms_per_frame
 
 
 def run_pipeline(
-    recording: str | Path, config: PipelineConfig | None = None
+    recording: str | Path, config: PipelineConfig | None = None,
+    notes: dict[int, tuple[np.ndarray, list[str]]] | None = None,
 ) -> tuple[list[TouchEvent], list[float]]:
-    """Run the sensor over a recording file; returns (events, ms per processed frame)."""
+    """Run the sensor over a recording file; returns (events, ms per processed frame)
+    (``notes``: as :func:`run_source`)."""
     from ..sources import open_source
 
     with open_source(recording) as src:
-        return run_source(src, config)
+        return run_source(src, config, notes)
 
 
 def evaluate_recording(
@@ -66,10 +91,11 @@ def evaluate_recording(
 ) -> EvalResult:
     """Run the pipeline on one recording file and evaluate it against its truth."""
     t = truth if isinstance(truth, Truth) else read_truth(truth)
-    events, timing = run_pipeline(recording, config)
+    notes: dict[int, tuple[np.ndarray, list[str]]] = {}
+    events, timing = run_pipeline(recording, config, notes)
     settle = (config or PipelineConfig()).tracking.down_frames
     return evaluate(t, events, gate_mm=gate_mm, settle_frames=settle, timing_ms=timing,
-                    label=label)
+                    label=label, point_notes=notes)
 
 
 def evaluate_case(
@@ -95,10 +121,11 @@ def evaluate_case(
     truth = truth_from_dict(rec.truth, case.label)
     out = []
     for cfg in configs:
-        events, timing = run_source(ArraySource.of_recording(rec, case.label), cfg)
+        notes: dict[int, tuple[np.ndarray, list[str]]] = {}
+        events, timing = run_source(ArraySource.of_recording(rec, case.label), cfg, notes)
         settle = (cfg or PipelineConfig()).tracking.down_frames
         out.append(evaluate(truth, events, gate_mm=gate_mm, settle_frames=settle,
-                            timing_ms=timing, label=case.label))
+                            timing_ms=timing, label=case.label, point_notes=notes))
     return out
 
 

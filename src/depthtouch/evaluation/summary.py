@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -37,6 +37,8 @@ class Metrics:
     of ``angle_step_frames`` frames (3 by default, as the issue tracker measures).
     jitter_rms_mm: RMS distance to the mean position of a still finger.
     ms_per_frame_*: the pipeline's processing time per frame.
+    missed_by_reason: missed contacts the camera saw, by why (EvalResult.ep_miss_reason; most
+    common first; empty where the runs kept no point notes).
     """
 
     recordings: int
@@ -66,6 +68,7 @@ class Metrics:
     ms_per_frame_median: float
     ms_per_frame_p95: float
     false_longest_s: float = 0.0
+    missed_by_reason: dict[str, int] = field(default_factory=dict)
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready: NaN becomes None; floats rounded to 4 decimals."""
@@ -160,4 +163,16 @@ def summarize(results: Sequence[EvalResult]) -> Metrics:
         ms_per_frame_p95=_q(timing, 95),
         false_longest_s=max((float(n) * r.duration_s / r.n_frames for r in results
                              if r.n_frames for n in r.false_frames), default=0.0),
+        missed_by_reason=missed_by_reason(results),
     )
+
+
+def missed_by_reason(results: Sequence[EvalResult]) -> dict[str, int]:
+    """Missed contacts by why (EvalResult.ep_miss_reason), most common first (ties in the
+    order first met)."""
+    count: dict[str, int] = {}
+    for r in results:
+        for why in r.ep_miss_reason:
+            if why:
+                count[why] = count.get(why, 0) + 1
+    return dict(sorted(count.items(), key=lambda kv: -kv[1]))

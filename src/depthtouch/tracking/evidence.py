@@ -9,6 +9,7 @@ that tip's finger, and whether it looks like the top of a finger standing almost
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 
@@ -205,3 +206,63 @@ def evidence(points: TouchPoints, xy: list[XY], area_px: list[int], ok_new: list
                          lat + config.behind_lat_px * scale, config.behind_min_mm):
             w[j] = 0.0
     return w, refused
+
+
+#: why a point did or did not count in full toward a new contact (:func:`point_reasons`), in
+#: the order the tests are asked: the first test that took its weight away names it
+REASONS = ("counted", "tip too high", "long attachment", "enclosed by its hand", "high step",
+           "level behind", "behind another tip", "weak (size)")
+#: the setting that turns each weight test off (at 0), in the order of :data:`REASONS`
+_TESTS_OFF: tuple[tuple[str, str], ...] = (
+    ("long attachment", "attach_max_mm"),
+    ("high step", "step_max_mm"),
+    ("level behind", "flat_max_mm"),
+    ("behind another tip", "behind_lat_mm"),
+)
+
+
+def point_reasons(points: TouchPoints, scale: float | None, config: TrackingConfig,
+                  touch_on_mm: float) -> list[str]:
+    """Why each point of a frame did or did not count in full toward a new contact (one of
+    :data:`REASONS`; a diagnosis for the evaluation, not on the per-frame path).
+
+    The weights are those the tracker gives a pending contact (:func:`evidence`, after the
+    enclosure test; a tip above ``touch_on_mm`` that is not a steep top cannot start one).
+    A point that lost weight is named after the first of those tests that takes weight away
+    from it: with every test off, the tests are turned back on in order until its weight falls.
+    One that none of them lowers counts part of a frame for its size (``weak_evidence``).
+    """
+    from dataclasses import replace
+
+    n = len(points)
+    if n == 0:
+        return []
+    xy: list[XY] = list(map(tuple, points.xy_px.tolist()))
+    area = points.area_px.tolist()
+    steep = steep_tips(points, area, scale, config)
+    ok_new = [h <= touch_on_mm or s for h, s in zip(points.height_mm.tolist(), steep,
+                                                     strict=True)]
+    weights, refused = evidence(points, xy, area, ok_new, steep, scale, config)
+    out = []
+    for j in range(n):
+        if not ok_new[j]:
+            out.append("tip too high")
+        elif refused is not None and refused[j]:
+            out.append("enclosed by its hand")
+        elif weights[j] >= 1.0:
+            out.append("counted")
+        else:
+            out.append("")
+    if all(out):
+        return out
+    fields = [f for _, f in _TESTS_OFF]
+    off: dict[str, Any] = {f: 0.0 for f in fields}
+    prev, _ = evidence(points, xy, area, ok_new, steep, scale, replace(config, **off))
+    for k, (name, _) in enumerate(_TESTS_OFF):
+        later: dict[str, Any] = {f: 0.0 for f in fields[k + 1:]}
+        w_k, _ = evidence(points, xy, area, ok_new, steep, scale, replace(config, **later))
+        for j in range(n):
+            if not out[j] and w_k[j] < prev[j]:
+                out[j] = name
+        prev = w_k
+    return [r or "weak (size)" for r in out]
