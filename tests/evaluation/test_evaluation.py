@@ -12,6 +12,7 @@ import pytest
 
 from depthtouch.errors import ConfigError, SourceError
 from depthtouch.evaluation.metrics import (
+    FrameNotes,
     evaluate,
     match,
     read_truth,
@@ -429,7 +430,7 @@ def test_occluded_must_be_a_bool() -> None:
 
 def test_a_missed_contact_is_named_by_its_frames_notes() -> None:
     """Each missed contact takes the reason most of its frames give: the nearest point's
-    within the gate, or "no point"; a found one gets none."""
+    within the gate, or what the band held there; a found one gets none."""
     contacts = {f: [contact(1, 300, 200)] for f in range(5, 15)}
     for f in range(20, 30):
         contacts[f] = [contact(2, 100, 100)]
@@ -437,15 +438,20 @@ def test_a_missed_contact_is_named_by_its_frames_notes() -> None:
         contacts[f] = [contact(3, 500, 300)]
     t = truth_from_dict(doc(50, contacts))
     far = np.array([[300.0, 260.0]])  # 60 px = 120 mm away: beyond the gate
-    notes = {f: (np.array([[301.0, 200.0], [50.0, 50.0]]), ["high step", "counted"])
+    notes = {f: FrameNotes(np.array([[301.0, 200.0], [50.0, 50.0]]), ["high step", "counted"])
              for f in range(5, 12)}
-    notes |= {f: (np.array([[301.0, 200.0]]), ["level behind"]) for f in range(12, 15)}
-    notes |= {f: (far, ["counted"]) for f in range(20, 30)}
-    notes |= {f: (np.array([[500.0, 300.0]]), ["counted"]) for f in range(35, 45)}
+    notes |= {f: FrameNotes(np.array([[301.0, 200.0]]), ["level behind"]) for f in range(12, 15)}
+    notes |= {f: FrameNotes(far, ["counted"], np.array([[100.0, 100.0]]),
+                            ["band erased by the opening"]) for f in range(20, 27)}
+    notes |= {f: FrameNotes(far, ["counted"]) for f in range(27, 30)}
+    notes |= {f: FrameNotes(np.array([[500.0, 300.0]]), ["counted"]) for f in range(35, 45)}
     res = evaluate(t, track(7, range(35, 45), (500, 300)), point_notes=notes)
-    assert res.ep_miss_reason == ("high step", "no point", "")
+    assert res.ep_miss_reason == ("high step", "band erased by the opening", "")
     m = summarize([res, res])
-    assert m.missed_by_reason == {"high step": 2, "no point": 2}
+    assert m.missed_by_reason == {"high step": 2, "band erased by the opening": 2}
+    # frames noted without a probe of the contact: "no point"
+    notes |= {f: FrameNotes(far, ["counted"]) for f in range(20, 27)}
+    assert evaluate(t, [], point_notes=notes).ep_miss_reason[1] == "no point"
     # without notes: no reasons, and the other figures the same
     plain = evaluate(t, track(7, range(35, 45), (500, 300)))
     assert plain.ep_miss_reason == ()
@@ -456,8 +462,8 @@ def test_a_missed_contact_is_named_by_its_frames_notes() -> None:
 def test_a_contact_hidden_in_some_frames_is_named_by_its_visible_ones() -> None:
     contacts = {f: [contact(1, 300, 200) | {"occluded": f < 10}] for f in range(5, 15)}
     t = truth_from_dict(doc(30, contacts))
-    notes = {f: (np.array([[300.0, 200.0]]), ["tip too high"]) for f in range(5, 10)}
-    notes |= {f: (np.array([[300.0, 200.0]]), ["weak (size)"]) for f in range(10, 12)}
+    notes = {f: FrameNotes(np.array([[300.0, 200.0]]), ["tip too high"]) for f in range(5, 10)}
+    notes |= {f: FrameNotes(np.array([[300.0, 200.0]]), ["weak (size)"]) for f in range(10, 12)}
     res = evaluate(t, [], point_notes=notes)
     # frames 5-9 are hidden (their notes do not count); of 10-14: weak 2, no point 3
     assert res.ep_miss_reason == ("no point",)

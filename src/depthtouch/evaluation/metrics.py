@@ -25,7 +25,7 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 from scipy.optimize import linear_sum_assignment
@@ -142,8 +142,9 @@ class EvalResult:
     false-touch count does not see (an app saw the touch start above the surface).
     ep_miss_reason: per episode, why a contact the camera saw was missed ("" when found or
     hidden throughout; empty without the run's point notes): the most common, over its visible
-    frames, of "no point" (no touch point within the gate) and the nearest point's reason
-    (:func:`depthtouch.tracking.evidence.point_reasons`).
+    frames, of the nearest point's reason within the gate
+    (:func:`depthtouch.tracking.evidence.point_reasons`) and, without one, what the band held
+    there (:data:`BAND_STATES`; "no point" where the run noted nothing of it).
     """
 
     label: str
@@ -177,8 +178,24 @@ class EvalResult:
     ep_miss_reason: tuple[str, ...] = ()
 
 
-#: per frame index, the touch points' pixels (N, 2) and a reason per point (a run's notes)
-PointNotes = Mapping[int, tuple[np.ndarray, Sequence[str]]]
+class FrameNotes(NamedTuple):
+    """What a run noted of one frame, for naming missed contacts: its touch points' pixels
+    (N, 2) and a reason per point (:func:`depthtouch.tracking.evidence.point_reasons`); and at
+    some pixels (M, 2) (the truth's contacts of that frame), what the band held near each,
+    when no point did (:data:`BAND_STATES`)."""
+
+    xy_px: np.ndarray
+    reasons: Sequence[str]
+    probe_xy_px: np.ndarray = np.zeros((0, 2))
+    probe_states: Sequence[str] = ()
+
+
+#: per frame index, a run's notes
+PointNotes = Mapping[int, FrameNotes]
+#: what lay near a contact that no touch point came near: nothing in the touch band; band pixels
+#: that the opening erased (a part thinner than the opening: the front of a steep finger); an
+#: opened part that gave no point (under S_min, or no hand attached to it)
+BAND_STATES = ("nothing in the band", "band erased by the opening", "a region without a point")
 NO_POINT = "no point"
 
 
@@ -191,12 +208,17 @@ def _miss_reason(rows: np.ndarray, truth: Truth, notes: PointNotes, gate_mm: flo
             continue
         why = NO_POINT
         note = notes.get(int(truth.contact_frame[r]))
-        if note is not None and len(note[0]):
-            d, _ = surface_error_mm(note[0], truth.K, truth.contact_p_mm[r:r + 1],
+        if note is not None and len(note.xy_px):
+            d, _ = surface_error_mm(note.xy_px, truth.K, truth.contact_p_mm[r:r + 1],
                                     truth.contact_n[r:r + 1])
             k = int(np.argmin(d[:, 0]))
             if d[k, 0] <= gate_mm:
-                why = str(note[1][k])
+                why = str(note.reasons[k])
+        if why == NO_POINT and note is not None and len(note.probe_xy_px):
+            gap = np.hypot(*(note.probe_xy_px - truth.contact_xy_px[r]).T)
+            k = int(np.argmin(gap))
+            if gap[k] < 0.5:
+                why = str(note.probe_states[k])
         count[why] = count.get(why, 0) + 1
     return max(count, key=lambda k: count[k]) if count else ""
 

@@ -8,7 +8,7 @@ The suite itself (its file, cases and cached recordings) is :mod:`depthtouch.eva
 from __future__ import annotations
 
 import os
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
@@ -17,68 +17,59 @@ import numpy as np
 from ..config import PipelineConfig
 from ..errors import ConfigError
 from ..sources.base import ArraySource, DepthSource
-from ..types import FrameResult, TouchEvent, TouchPoints
-from .metrics import GATE_MM, EvalResult, Truth, evaluate, read_truth
+from ..types import FrameResult, TouchEvent
+from .metrics import GATE_MM, EvalResult, FrameNotes, Truth, evaluate, read_truth
+from .notes import contact_pixels
 from .suite import SuiteCase, ensure_recording, load_suite
 from .summary import Metrics, summarize
 
 
 # --- running -------------------------------------------------------------------------------------
 class EventCollector:
-    """A sink that keeps every event of a run (for the evaluation), and with ``explain`` (a
-    reason per touch point of a frame) the notes of every frame with points: its index ->
-    (the points' pixels, their reasons), for :func:`~depthtouch.evaluation.metrics.evaluate`'s
-    ``point_notes``."""
+    """A sink that keeps every event of a run (for the evaluation)."""
 
-    def __init__(self, explain: Callable[[TouchPoints], list[str]] | None = None) -> None:
+    def __init__(self) -> None:
         self.events: list[TouchEvent] = []
-        self.explain = explain
-        self.notes: dict[int, tuple[np.ndarray, list[str]]] = {}
 
     def send(self, result: FrameResult) -> None:
         self.events.extend(result.events)
-        if self.explain is not None and len(result.points) and not result.learning:
-            self.notes[result.frame.index] = (result.points.xy_px.copy(),
-                                              self.explain(result.points))
 
     def close(self) -> None:
         """Nothing to release."""
 
 
 def run_source(source: DepthSource, config: PipelineConfig | None,
-               notes: dict[int, tuple[np.ndarray, list[str]]] | None = None
+               notes: dict[int, FrameNotes] | None = None,
+               probes: Mapping[int, np.ndarray] | None = None,
                ) -> tuple[list[TouchEvent], list[float]]:
     """Run the sensor over a source; returns (events, ms per frame of the touch path). With
-    ``notes``, fills it with why each frame's points counted or not toward a new contact
-    (:class:`EventCollector`; :func:`~depthtouch.tracking.evidence.point_reasons`)."""
+    ``notes``, fills it with what each frame showed for naming missed contacts
+    (:class:`~depthtouch.evaluation.notes.NotingCollector`; ``probes``: per frame, the pixels
+    to note the band near, such as the truth's contacts)."""
     from ..driver import drive
     from ..pipeline import Pipeline
-    from ..tracking.evidence import point_reasons
+    from .notes import NotingCollector
 
     pipeline = Pipeline(config)
-    cfg = pipeline.config
-
-    def explain(points: TouchPoints) -> list[str]:
-        return point_reasons(points, pipeline.surface.mm_per_px, cfg.tracking,
-                             cfg.touchpoints.touch_on_mm)
-
-    collect = EventCollector(explain if notes is not None else None)
+    collect = (EventCollector() if notes is None
+               else NotingCollector(pipeline, probes or {}))
     stats = drive(source, pipeline, [collect])
-    if notes is not None:
+    if notes is not None and isinstance(collect, NotingCollector):
         notes.update(collect.notes)
     return collect.events, stats.ms_per_frame
 
 
 def run_pipeline(
     recording: str | Path, config: PipelineConfig | None = None,
-    notes: dict[int, tuple[np.ndarray, list[str]]] | None = None,
+    notes: dict[int, FrameNotes] | None = None,
+    probes: Mapping[int, np.ndarray] | None = None,
 ) -> tuple[list[TouchEvent], list[float]]:
     """Run the sensor over a recording file; returns (events, ms per processed frame)
-    (``notes``: as :func:`run_source`)."""
+    (``notes``, ``probes``: as :func:`run_source`)."""
     from ..sources import open_source
 
     with open_source(recording) as src:
-        return run_source(src, config, notes)
+        return run_source(src, config, notes, probes)
 
 
 def evaluate_recording(
@@ -91,8 +82,8 @@ def evaluate_recording(
 ) -> EvalResult:
     """Run the pipeline on one recording file and evaluate it against its truth."""
     t = truth if isinstance(truth, Truth) else read_truth(truth)
-    notes: dict[int, tuple[np.ndarray, list[str]]] = {}
-    events, timing = run_pipeline(recording, config, notes)
+    notes: dict[int, FrameNotes] = {}
+    events, timing = run_pipeline(recording, config, notes, contact_pixels(t))
     settle = (config or PipelineConfig()).tracking.down_frames
     return evaluate(t, events, gate_mm=gate_mm, settle_frames=settle, timing_ms=timing,
                     label=label, point_notes=notes)
@@ -121,8 +112,9 @@ def evaluate_case(
     truth = truth_from_dict(rec.truth, case.label)
     out = []
     for cfg in configs:
-        notes: dict[int, tuple[np.ndarray, list[str]]] = {}
-        events, timing = run_source(ArraySource.of_recording(rec, case.label), cfg, notes)
+        notes: dict[int, FrameNotes] = {}
+        events, timing = run_source(ArraySource.of_recording(rec, case.label), cfg, notes,
+                                    contact_pixels(truth))
         settle = (cfg or PipelineConfig()).tracking.down_frames
         out.append(evaluate(truth, events, gate_mm=gate_mm, settle_frames=settle,
                             timing_ms=timing, label=case.label, point_notes=notes))
