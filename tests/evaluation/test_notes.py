@@ -76,14 +76,30 @@ def test_the_local_erosion_is_the_sensors_own() -> None:
     r = 5  # 10 mm at 2 mm per px
     for _ in range(40):
         heights = {}
-        for _ in range(6):
-            y, x = int(rng.integers(0, H - 4)), int(rng.integers(0, W - 4))
-            heights[(y, y + int(rng.integers(1, 5)), x, x + int(rng.integers(1, 5)))] = float(
+        for _ in range(8):  # boxes anywhere, the image's edges too
+            y, x = int(rng.integers(-2, H - 2)), int(rng.integers(-2, W - 2))
+            heights[(max(y, 0), y + int(rng.integers(3, 7)), max(x, 0),
+                     x + int(rng.integers(3, 7)))] = float(
                 rng.uniform(2, 40))
         depth = frame_with(heights)
         core = band_core(depth, b) > 0
-        probes = rng.uniform(0, [W - 1, H - 1], (8, 2))
+        probes = np.vstack([rng.uniform(0, [W - 1, H - 1], (8, 2)),
+                            [[0.0, 0.0], [W - 1.0, H - 1.0], [0.0, H / 2]]])
         for (x, y), state in zip(probes, band_states(depth, b, probes), strict=True):
             cx, cy = int(round(x)), int(round(y))
             near = core[max(cy - r, 0):cy + r + 1, max(cx - r, 0):cx + r + 1].any()
             assert near == (state == "a region without a point")
+
+
+def test_outside_the_image_counts_as_band_as_in_the_sensors_erosion() -> None:
+    """A part 2 px deep along the image's top edge survives the sensor's opening (outside the
+    image counts as in); inside the image the same part is erased."""
+    from depthtouch.touch.regions import band_core
+
+    b = flat_bounds()
+    edge = frame_with({(0, 2, 70, 90): 10.0})
+    assert (band_core(edge, b)[:5, 75:85] > 0).any()
+    assert band_states(edge, b, np.array([[80.0, 0.0]])) == ["a region without a point"]
+    inside = frame_with({(30, 32, 70, 90): 10.0})
+    assert not (band_core(inside, b)[25:35, 75:85] > 0).any()
+    assert band_states(inside, b, np.array([[80.0, 30.0]])) == ["band erased by the opening"]

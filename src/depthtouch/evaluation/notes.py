@@ -60,8 +60,7 @@ def band_states(depth: np.ndarray, bounds: BandBounds, xy_px: np.ndarray) -> lis
             out.append(BAND_STATES[0])
             continue
         d = depth[y0:y1, x0:x1]
-        band = (d > bounds.band_lo[y0:y1, x0:x1]) & (d < bounds.band_hi[y0:y1, x0:x1])
-        band &= bounds.valid[y0:y1, x0:x1] & (d > 0)
+        band = (bounds.band_lo[y0:y1, x0:x1] <= d) & (d <= bounds.band_hi[y0:y1, x0:x1])
         # the pixels within r of the probe (the window holds the erosion's pad around them)
         iy, ix = np.mgrid[y0:y1, x0:x1]
         near = (np.abs(iy - cy) <= r) & (np.abs(ix - cx) <= r)
@@ -69,9 +68,10 @@ def band_states(depth: np.ndarray, bounds: BandBounds, xy_px: np.ndarray) -> lis
             out.append(BAND_STATES[0])
             continue
         core = band.copy()
-        if pad:  # the erosion by an open_px square (pixels outside the window count as out)
+        if pad:  # the erosion by an open_px square; outside the image counts as in, as the
+            # sensor's (outside the window elsewhere: no pixel within r reaches it)
             hh, ww = band.shape
-            p = np.zeros((hh + 2 * pad, ww + 2 * pad), bool)
+            p = np.ones((hh + 2 * pad, ww + 2 * pad), bool)
             p[pad:pad + hh, pad:pad + ww] = band
             for dy in range(-pad, pad + 1):
                 for dx in range(-pad, pad + 1):
