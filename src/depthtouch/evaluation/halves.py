@@ -304,13 +304,15 @@ def fmt(v: Any, spec: str) -> str:
 
 
 def reasons_text(count: dict[str, int]) -> str:
-    """Counts per reason as text ("no point 3, high step 1"), in their order."""
+    """Counts per reason as text ("band erased by the opening 3, high step 1"), in their
+    order."""
     return ", ".join(f"{k} {n}" for k, n in count.items())
 
 
 def missed_lines(report: dict[str, Any]) -> list[str]:
-    """One line per half: its missed contacts by why (:func:`figures`' ``missed_by_reason``;
-    the nearest touch point's reason on most of the contact's visible frames, or "no point")."""
+    """One line per half: its missed contacts by why (:func:`figures`' ``missed_by_reason``:
+    the nearest touch point's reason on most of the contact's visible frames or, without one,
+    what the band held there; EvalResult.ep_miss_reason)."""
     out = []
     for h in HALVES:
         why = report["overall"].get(h, {}).get("missed_by_reason")
