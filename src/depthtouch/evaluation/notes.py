@@ -82,10 +82,11 @@ def band_states(depth: np.ndarray, bounds: BandBounds, xy_px: np.ndarray) -> lis
 
 class NotingCollector:
     """A sink that keeps every event of a run and the notes of its frames (see the module
-    doc): those with touch points or with ``probes`` (per frame index, pixels (M, 2) whose
-    band to note)."""
+    doc): with ``probes`` (per frame index, pixels (M, 2) whose band to note: the truth's
+    contacts, the only frames the evaluation asks about), the frames it lists; without, every
+    frame with touch points."""
 
-    def __init__(self, pipeline: Pipeline, probes: Mapping[int, np.ndarray]) -> None:
+    def __init__(self, pipeline: Pipeline, probes: Mapping[int, np.ndarray] | None) -> None:
         self.events: list[TouchEvent] = []
         self.notes: dict[int, FrameNotes] = {}
         self._pipeline = pipeline
@@ -95,10 +96,15 @@ class NotingCollector:
         self.events.extend(result.events)
         if result.learning:
             return
-        probe = self._probes.get(result.frame.index)
         points = result.points
-        if not len(points) and probe is None:
-            return
+        if self._probes is None:
+            if not len(points):
+                return
+            probe = None
+        else:
+            probe = self._probes.get(result.frame.index)
+            if probe is None:  # a frame without contacts: never asked about
+                return
         surface, cfg = self._pipeline.surface, self._pipeline.config
         reasons = point_reasons(points, surface.mm_per_px, cfg.tracking,
                                 cfg.touchpoints.touch_on_mm)

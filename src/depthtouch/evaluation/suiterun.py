@@ -45,14 +45,14 @@ def run_source(source: DepthSource, config: PipelineConfig | None,
     """Run the sensor over a source; returns (events, ms per frame of the touch path). With
     ``notes``, fills it with what each frame showed for naming missed contacts
     (:class:`~depthtouch.evaluation.notes.NotingCollector`; ``probes``: per frame, the pixels
-    to note the band near, such as the truth's contacts)."""
+    to note the band near, such as the truth's contacts: then only those frames are noted)."""
     from ..driver import drive
     from ..pipeline import Pipeline
     from .notes import NotingCollector
 
     pipeline = Pipeline(config)
     collect = (EventCollector() if notes is None
-               else NotingCollector(pipeline, probes or {}))
+               else NotingCollector(pipeline, probes))
     stats = drive(source, pipeline, [collect])
     if notes is not None and isinstance(collect, NotingCollector):
         notes.update(collect.notes)

@@ -68,6 +68,12 @@ def steep_tips(points: TouchPoints, area_px: list[int], scale: float | None,
     return out
 
 
+def may_start(height_mm: list[float], steep: list[bool], touch_on_mm: float) -> list[bool]:
+    """Which points may start a new contact: their tip within ``touch_on_mm`` of the surface,
+    or the top of a steep finger (:func:`steep_tips`); an unknown height (NaN) never does."""
+    return [h <= touch_on_mm or s for h, s in zip(height_mm, steep, strict=True)]
+
+
 def enclosure_asks(points: TouchPoints, config: TrackingConfig) -> np.ndarray | None:
     """The points the enclosure test may refuse for their share and tip height (bool (N,);
     ``enclosed_share_max``, ``enclosed_height_min_mm``; NaN compares False); None when the
@@ -240,8 +246,7 @@ def point_reasons(points: TouchPoints, scale: float | None, config: TrackingConf
     xy: list[XY] = list(map(tuple, points.xy_px.tolist()))
     area = points.area_px.tolist()
     steep = steep_tips(points, area, scale, config)
-    ok_new = [h <= touch_on_mm or s for h, s in zip(points.height_mm.tolist(), steep,
-                                                     strict=True)]
+    ok_new = may_start(points.height_mm.tolist(), steep, touch_on_mm)
     weights, refused = evidence(points, xy, area, ok_new, steep, scale, config)
     out = []
     for j in range(n):

@@ -51,7 +51,7 @@ import numpy as np
 from ..config import TouchPointConfig, TrackingConfig
 from ..types import TouchPoints, TouchState
 from .assign import assign, gated_cost, nearest_index
-from .evidence import XY, evidence, refused_out, steep_tips
+from .evidence import XY, evidence, may_start, refused_out, steep_tips
 from .framerate import FrameRate
 from .lift import CoreHistory, held_grace
 
@@ -219,7 +219,7 @@ class Tracker:
         off, on = self.touch.touch_off_mm, self.touch.touch_on_mm
         ok_cont = [v <= off for v in h]
         steep = steep_tips(points, area, self.scale_mm_per_px, self.config)
-        ok_new = [v <= on or s for v, s in zip(h, steep, strict=True)]
+        ok_new = may_start(h, steep, on)
         matched_t: dict[int, int] = {}
         groups: dict[int, list[int]] = {}
         if n_t and n_p:
