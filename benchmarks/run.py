@@ -312,11 +312,20 @@ def _analysis(rows: list) -> list[str]:
         'with levelling on, a second run: 1.219 ms (p95 1.625) and 0.400 ms, median + surface '
         'update 0.377 ms (+0.11 ms, the measurement), over the 1.0 ms target on this machine that'
         ' hour either way; after the review (the offset where it is largest asked through one '
-        'helper, the same behaviour) the table above: 0.853 ms (p95 1.170) and 0.358 ms, median +'
+        'helper, the same behaviour) that run\'s table: 0.853 ms (p95 1.170) and 0.358 ms, median +'
         " surface update 0.287 ms, with OpenCV's reference pass at 0.669 ms: the machine faster "
         "that hour; OpenCV's reference pass read 0.931 ms in the first run against "
         '0.62-0.64 ms in sessions 44-49 (and 2.214 ms in the second run, the neighbours during '
         'that part).',
+        '- Session 54 (the same AMD EPYC VM, OpenCV 5.1.0): one change on the per-frame path, '
+        "the tracker's test of which points may start a contact moved into one function that "
+        "the evaluation's reasons share (the same arithmetic). `make bench` (the table above) "
+        'read 640x480 with 5 touches 1.146 ms (p95 1.571) and 0.426 ms without touches, over '
+        "the 1.0 ms target, with OpenCV's reference pass at 0.930 ms against 0.669 ms in "
+        "session 53's last run: the machine about 40 % slower that hour. Against the session's "
+        'starting code (37ed8c4), `--quick` runs taking turns in the same hour: 1.045, 1.300, '
+        '1.312 ms (37ed8c4) and 1.329, 1.325, 1.259 ms (this code), tracking 0.122-0.156 '
+        'against 0.147-0.157 ms: within the spread between runs.',
         "- The fingertip kernel reads small windows of six per-pixel surface arrays that the "
         "full-frame passes (median, band) push out of the cache each frame: the same call takes "
         "about half the time on warm data. Memory, not arithmetic, is most of what is left.",
