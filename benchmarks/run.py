@@ -326,6 +326,21 @@ def _analysis(rows: list) -> list[str]:
         'starting code (37ed8c4), `--quick` runs taking turns in the same hour: 1.045, 1.300, '
         '1.312 ms (37ed8c4) and 1.329, 1.325, 1.259 ms (this code), tracking 0.122-0.156 '
         'against 0.147-0.157 ms: within the spread between runs.',
+        '- Session 55 (the same AMD EPYC VM, OpenCV 5.1.0): no change to the per-frame path. '
+        'The same code read 640x480 with 5 touches 0.84-0.89 ms in some processes and 1.06-1.34'
+        ' ms in others started minutes apart, every stage slower together (tracking, plain '
+        'Python, 0.093 against 0.134-0.154 ms): the whole process runs slower, not one stage, '
+        'so separate processes compare their luck as much as the code. `benchmarks/paired.py '
+        '--against REV` times this checkout and another revision (exported with `git archive` '
+        'as the package `depthtouch_b`) in one process, taking turns in blocks of 60 frames: '
+        'the same code against itself read 0.793 / 0.777 ms, per-round ratios 0.77-1.04 with a '
+        'median of 0.99. Measured with it and not kept: the surface arrays in 2 MB pages (one '
+        '`madvise`d map) 0.829 ms against 0.834 ms in plain pages, and 1.317 against 1.268 ms '
+        "in a second run; every kernel compiled with numpy's error model (no division checks) "
+        "0.838 against 0.855 ms, and 0.889 against 0.853 ms: no change either way. "
+        "The fingertip kernel's call on a frame "
+        'took 0.268 ms in the pipeline and 0.215 ms called again at once on the same frame: the'
+        ' cold cache costs it about a fifth.',
         "- The fingertip kernel reads small windows of six per-pixel surface arrays that the "
         "full-frame passes (median, band) push out of the cache each frame: the same call takes "
         "about half the time on warm data. Memory, not arithmetic, is most of what is left.",
