@@ -2,9 +2,9 @@
 without the machine's luck.
 
 On the shared VMs these benchmarks run on, the same code reads very differently from one
-process to the next: `make bench`'s 640x480 case with 5 touches read 0.83 and 1.34 ms in two
+process to the next: `make bench`'s 640x480 case with 5 touches read 0.84 and 1.34 ms in two
 processes started minutes apart in session 55, the tracking stage (plain Python, no arrays)
-0.095 and 0.154 ms, so the whole process runs slower, not one stage. Runs of two versions in
+0.093 and 0.154 ms, so the whole process runs slower, not one stage. Runs of two versions in
 separate processes, even taking turns, compare those processes as much as the code. Here both
 versions run in one process: this checkout's ``depthtouch`` (A) and another revision's
 ``src/depthtouch``, exported with ``git archive`` and imported under the name ``depthtouch_b``
