@@ -37,8 +37,16 @@ def test_export_gives_the_revision_as_its_own_package(tmp_path: Path) -> None:
             "assert c.__file__ != d.__file__; print(c.PipelineConfig().regions.tu_mm)")
     out = subprocess.run([sys.executable, "-c", code], check=True, capture_output=True, text=True)
     assert float(out.stdout) > 0
-    # a second export of the same commit reuses the folder
+    # a second export of the same commit reuses the folder (a file left in it survives)
+    marker = pkg / "left_here.txt"
+    marker.write_text("x")
     assert paired.export(sha, tmp_path) == (sha, where)
+    assert marker.read_text() == "x"
+    # an export interrupted before its package was complete is done again
+    (pkg / "__init__.py").unlink()
+    assert paired.export(sha, tmp_path) == (sha, where)
+    assert (pkg / "__init__.py").is_file() and not marker.exists()
+    assert not (where / "tmp").exists()
 
 
 @needs_git
