@@ -291,6 +291,13 @@ class Pipeline:
         measured = [u.track for u in updates if u.measured]
         filtered: list[list[float]] = []  # mm, in the order of the measured updates
         if measured:
+            for u in updates:
+                if u.state == "down" and u.track.prior:
+                    # the pending points of a contact just down, at their own times, before
+                    # its first (TrackingConfig.land_prior_frames)
+                    for px, py, pt in u.track.prior:
+                        self._filter.update(np.array([u.track.id], np.int64),
+                                            np.array([[px * scale, py * scale]]), pt)
             ids = np.array([t.id for t in measured], np.int64)
             xy = np.array([c * scale for t in measured for c in t.report_px],
                           np.float64).reshape(-1, 2)

@@ -265,6 +265,17 @@ class TrackingConfig:
         6 frames 1 more contact for 3 more false touches, and without the pixel-size limit 3
         more false touches at ToF 2 m (ranges [0, 100] mm, [0, 10] frames, [0, 1]; 0 mm turns
         it off).
+    land_prior_frames, land_prior_mm: at down, the path filter is first given the contact's
+        pending points (up to land_prior_frames of them, the last ones in a row within
+        land_prior_mm of the down point, at their own frames' times), so that the filter's
+        landing mean starts from several measurements instead of one; needs the scale (mm
+        per px). Off by default (0 frames): with 4 frames and 3 mm, on the tune halves (session
+        56, docs/accuracy.md section 7) still-finger jitter went 0.535 -> 0.527 mm (hard),
+        0.704 -> 0.726 (hard-fresh3), 0.588 -> 0.574 (hard-fresh5), 0.981 -> 0.982
+        (hard-fresh6), error median down by 0.004-0.046 mm on all four; its rule asked a fall
+        of 0.03 mm on two halves and no rise over 0.01. Most still runs begin after the touch
+        is down, and a touch goes down after one or two pending frames (ranges [0, 30] frames,
+        [0, 100] mm).
     lift_core_mm: a contact whose finger's core (TouchPoints.core_height_mm: the 75th
         percentile of the 3x3 heights at its point) lies more than this above the same
         contact's own level (the median over its last 300 frames of the median of its last 3
@@ -380,6 +391,8 @@ class TrackingConfig:
     pending_low_mm: float = 5.0
     pending_low_gap_frames: int = 3
     pending_low_decay: float = 0.9
+    land_prior_frames: int = 0
+    land_prior_mm: float = 3.0
     steep_evidence: float = 0.34
     steep_area_min_mm2: float = 60.0
     steep_area_max_mm2: float = 150.0
@@ -446,6 +459,8 @@ class TrackingConfig:
         _range("tracking.pending_low_mm", self.pending_low_mm, 0.0, 100.0)
         _range("tracking.pending_low_gap_frames", self.pending_low_gap_frames, 0, 10)
         _range("tracking.pending_low_decay", self.pending_low_decay, 0.0, 1.0)
+        _range("tracking.land_prior_frames", self.land_prior_frames, 0, 30)
+        _range("tracking.land_prior_mm", self.land_prior_mm, 0.0, 100.0)
         _range("tracking.steep_evidence", self.steep_evidence, 0.0, 1.0)
         _range("tracking.steep_area_min_mm2", self.steep_area_min_mm2, 0.0, 10000.0)
         _range("tracking.steep_area_max_mm2", self.steep_area_max_mm2, self.steep_area_min_mm2,

@@ -93,6 +93,9 @@ class Track:
     # the stream's frame intervals since its point was last seen, this frame's included (1 +
     # missing in an even stream; a frame the camera dropped adds one: FrameRate.step)
     since: float = 0.0
+    # pending: its reported points (report_px) and their times (s) in the frames it was seen,
+    # the last TrackingConfig.land_prior_frames of them (given to the path filter at down)
+    prior: list[tuple[float, float, float]] = field(default_factory=list)
 
     @property
     def report_px(self) -> XY:
@@ -254,6 +257,7 @@ class Tracker:
             for i in members:
                 shift[i] = (k, moved)
         cfg, low_mm = self.config, self._pending_low_mm()
+        n_prior = cfg.land_prior_frames if self.scale_mm_per_px is not None else 0
         down_frames = cfg.down_frames
         # how far a pending contact's point may move in a frame and still count (0: any)
         slide_mm = (cfg.pending_step_max_mm * self._rate.gate
@@ -361,6 +365,9 @@ class Tracker:
                 elif t.evidence >= down_frames - 1e-9:
                     self._activate(t)
                     out.append(TrackUpdate(t, "down", True))
+                elif n_prior > 0 and t_s is not None:
+                    t.prior.append((*t.report_px, t_s))
+                    del t.prior[:-n_prior]
                 keep.append(t)
             elif t.active:
                 if self._merged(t, pos, used) and t.merged < cfg.merge_frames:
@@ -397,6 +404,8 @@ class Tracker:
             if t.evidence >= down_frames - 1e-9:
                 self._activate(t)
                 out.append(TrackUpdate(t, "down", True))
+            elif n_prior > 0 and t_s is not None:
+                t.prior.append((*t.report_px, t_s))
             keep.append(t)
         self.tracks = keep
         return out
@@ -504,6 +513,16 @@ class Tracker:
         t.active = True
         t.id = self.next_id
         self.next_id += 1
+        if t.prior:
+            # the pending points the path filter is given before the down frame's: the last
+            # ones in a row within land_prior_mm of it (a finger that slid in gives none)
+            scale = self.scale_mm_per_px or 1.0
+            r_px = self.config.land_prior_mm / scale
+            x0, y0 = t.report_px
+            k = len(t.prior)
+            while k > 0 and math.hypot(t.prior[k - 1][0] - x0, t.prior[k - 1][1] - y0) <= r_px:
+                k -= 1
+            del t.prior[:k]
 
     def end_all(self) -> list[TrackUpdate]:
         """End every active contact (``up``), e.g. at the end of a stream or on a surface reset."""
