@@ -273,8 +273,9 @@ class TrackingConfig:
         56, docs/accuracy.md section 7) still-finger jitter went 0.535 -> 0.527 mm (hard),
         0.704 -> 0.726 (hard-fresh3), 0.588 -> 0.574 (hard-fresh5), 0.981 -> 0.982
         (hard-fresh6), error median down by 0.004-0.046 mm on all four; its rule asked a fall
-        of 0.03 mm on two halves and no rise over 0.01. Most still runs begin after the touch
-        is down, and a touch goes down after one or two pending frames (ranges [0, 30] frames,
+        of 0.03 mm on two halves and no rise over 0.01. A tip-sized point goes down on its
+        second frame, so there is one pending point to give, and 73 of hard's 111 tune still
+        runs begin one or more frames after their touch's down (ranges [0, 30] frames,
         [0, 100] mm).
     lift_core_mm: a contact whose finger's core (TouchPoints.core_height_mm: the 75th
         percentile of the 3x3 heights at its point) lies more than this above the same
