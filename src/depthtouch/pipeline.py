@@ -112,6 +112,8 @@ class Pipeline:
         self._filter: TouchFilter = (make_filter(self.config.filter) if path_filter is None
                                      else path_filter)
         self._tracker = Tracker(self.config.tracking, self.config.touchpoints)
+        # whether contacts going down bring pending points for the filter (land_prior_frames)
+        self._land_prior = self.config.tracking.land_prior_frames > 0
         # the frames of the last seconds, kept only where the tracker asks how much the heights
         # around a point changed (TrackingConfig.enclosed_change_max_mm)
         tc = self.config.tracking
@@ -291,13 +293,8 @@ class Pipeline:
         measured = [u.track for u in updates if u.measured]
         filtered: list[list[float]] = []  # mm, in the order of the measured updates
         if measured:
-            for u in updates:
-                if u.state == "down" and u.track.prior:
-                    # the pending points of a contact just down, at their own times, before
-                    # its first (TrackingConfig.land_prior_frames)
-                    for px, py, pt in u.track.prior:
-                        self._filter.update(np.array([u.track.id], np.int64),
-                                            np.array([[px * scale, py * scale]]), pt)
+            if self._land_prior:
+                self._give_prior(updates, scale)
             ids = np.array([t.id for t in measured], np.int64)
             xy = np.array([c * scale for t in measured for c in t.report_px],
                           np.float64).reshape(-1, 2)
@@ -330,6 +327,15 @@ class Pipeline:
                                      extra))
         self._add_coordinates(events)
         return events
+
+    def _give_prior(self, updates: list[TrackUpdate], scale: float) -> None:
+        """The pending points of each contact just down, at their own times, to the path
+        filter before its first (TrackingConfig.land_prior_frames)."""
+        for u in updates:
+            if u.state == "down" and u.track.prior:
+                ids = np.array([u.track.id], np.int64)
+                for px, py, pt in u.track.prior:
+                    self._filter.update(ids, np.array([[px * scale, py * scale]]), pt)
 
     def _add_coordinates(self, events: list[TouchEvent]) -> None:
         for e, xyz in zip(events, self.surface.xyz_mm([(e.x, e.y) for e in events])):
