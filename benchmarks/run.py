@@ -341,6 +341,15 @@ def _analysis(rows: list) -> list[str]:
         "The fingertip kernel's call on a frame "
         'took 0.268 ms in the pipeline and 0.215 ms called again at once on the same frame: the'
         ' cold cache costs it about a fifth.',
+        '- Session 56 (an AMD EPYC VM, OpenCV 5.1.0, a new machine): one change on the '
+        "per-frame path, the tracker's pending points given to the path filter at down "
+        '(`tracking.land_prior_frames`, off by default: the tracker and the pipeline each test '
+        'one flag). `make bench` (the table above) read 640x480 with 5 touches 1.175 ms (p95 '
+        '1.762) and 0.566 ms without touches, over the 1.0 ms target, with OpenCV\'s reference '
+        'pass at 0.746 ms. `benchmarks/paired.py --against 7017c3e` (the session\'s starting '
+        'code, 8 rounds of 60 frames in one process): 1.340 ms (this code) against 1.305 ms, '
+        'per-round ratio B/A median 1.022 (0.765-1.069), tracking 0.152 against 0.145 ms: '
+        'within the spread between rounds.',
         "- The fingertip kernel reads small windows of six per-pixel surface arrays that the "
         "full-frame passes (median, band) push out of the cache each frame: the same call takes "
         "about half the time on warm data. Memory, not arithmetic, is most of what is left.",
