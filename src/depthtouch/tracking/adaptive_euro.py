@@ -88,14 +88,13 @@ class AdaptiveEuroFilter(FilterBase):
     - Ranges: land_frames [0, 10000] (0 turns it off), land_blend_sigmas [0, 100],
       land_sigmas (0, 100], land_restart_frames [0, 16] (under 2 turns the restart off),
       land_restart_sigmas (0, 100].
-    The re-landing (reland_frames >= 2, with the landing on; off by default): a finger that
-    stops after a move lands again, instead of waiting ``lock_frames`` for the lock while the
-    1€ stage closes the last few mm of its lag at the rest cutoff. Off: it lowered hard's
-    held-out jitter but not hard-fresh2's, which failed its rule (docs/filters.md, "The
-    re-landing", sessions 23 and 28).
+    The re-landing (reland_frames >= 2, with the landing on; on by default since session 57,
+    after its rules on four tune and three held-out halves; docs/filters.md, "The
+    re-landing"): a finger that stops after a move lands again, instead of waiting
+    ``lock_frames`` for the lock while the 1€ stage closes the last few mm of its lag.
 
     - A touch that moved faster than ``reland_mm_s`` (default 40 mm/s), neither landing nor
-      locked, whose last ``reland_frames`` (6 when on) medians lie on a line flatter than
+      locked, whose last ``reland_frames`` (default 6) medians lie on a line flatter than
       ``reland_sigmas`` (default 2) standard errors, starts the landing above from those
       measurements; a slower drag is never held (tested).
     - Ranges: reland_frames [0, 16] (under 2 turns it off), reland_sigmas (0, 100],
@@ -143,7 +142,7 @@ class AdaptiveEuroFilter(FilterBase):
         "land_sigmas": Param(6.0, 0.0, 100.0),
         "land_restart_frames": Param(8.0, 0.0, _HB / 2, lo_open=False),
         "land_restart_sigmas": Param(4.0, 0.0, 100.0),
-        "reland_frames": Param(0.0, 0.0, _HB / 2, lo_open=False),
+        "reland_frames": Param(6.0, 0.0, _HB / 2, lo_open=False),
         "reland_sigmas": Param(2.0, 0.0, 100.0),
         "reland_mm_s": Param(40.0, 0.0, 10000.0, lo_open=False),
         "lock_resume_frames": Param(0.0, 0.0, 10000.0, lo_open=False),
