@@ -31,7 +31,8 @@ from .touch.recent import RecentDepth
 from .touch.regions import band_regions
 from .tracking.evidence import enclosure_asks
 from .tracking.filters import TouchFilter, make_filter
-from .tracking.tracker import Tracker, TrackUpdate
+from .tracking.track import TrackUpdate
+from .tracking.tracker import Tracker
 from .types import Frame, FrameResult, FrameStatus, TouchEvent, TouchPoints
 
 log = logging.getLogger(__name__)

@@ -10,7 +10,8 @@ from depthtouch.tracking import assign as assign_mod
 from depthtouch.tracking import tracker as tracking
 from depthtouch.tracking.assign import gated_cost, gated_cost_array
 from depthtouch.tracking.evidence import enclosure_asks
-from depthtouch.tracking.tracker import Track, Tracker
+from depthtouch.tracking.track import Track
+from depthtouch.tracking.tracker import Tracker
 from depthtouch.types import TouchPoints
 
 

@@ -15,8 +15,8 @@ from typing import Any
 
 from ..checks import show as _show
 from ..errors import ConfigError
-from .stages import AdaptConfig, RegionConfig, SurfaceConfig, TouchPointConfig
-from .tracking import FilterConfig, TrackingConfig
+from .stages import AdaptConfig, FilterConfig, RegionConfig, SurfaceConfig, TouchPointConfig
+from .tracking import TrackingConfig
 
 if sys.version_info >= (3, 11):
     import tomllib

@@ -1,14 +1,17 @@
-"""Configs of the detection stages: surface model, touch regions, touch points, surface
-adaptation.
+"""Configs of the detection stages (surface model, touch regions, touch points, surface
+adaptation) and of the touch path filter.
 
 Part of :mod:`depthtouch.config`, which re-exports every name.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, field
 
 from ..checks import check_range as _range
+from ..checks import show as _show
 from ..errors import ConfigError
 
 
@@ -281,3 +284,36 @@ class AdaptConfig:
         _range("adapt.bump_fraction", self.bump_fraction, 0.0, 1.0, lo_open=True)
         _range("adapt.bump_s", self.bump_s, 0.0, 60.0)
         _range("adapt.keep_out_mm", self.keep_out_mm, 0.0, 1000.0)
+
+
+@dataclass(frozen=True)
+class FilterConfig:
+    """Touch path correction: ``name`` of the filter and its parameters (see filters.py).
+
+    params: finite numbers by name; which names a filter takes is checked by filters.py.
+    The default, ``adaptive_euro`` (the paper's adaptive filter followed by a speed-gated 1€
+    stage and a lock of a finger proven at rest), was chosen by measurement on the hard suite's
+    tune half (docs/filters.md): lower jitter of a still finger and fewer id switches than the
+    adaptive filter alone, the same position error and angle error; the rest lock (on by
+    default since issue 13, point 4) ignores one-frame jumps of a resting tip and never
+    engages on a drag of 10 mm/s or more; the still models (``still_p`` 0.01, on since
+    session 39; 0 turns them off) hold a finger as far as a still and a moving model's
+    likelihoods say it is still: hard held-out jitter 0.878 → 0.760 mm, a drag at 10-20 mm/s
+    2.1-2.3 mm behind instead of 1.2-1.6 (docs/filters.md, "The still models"); the
+    re-landing (``reland_frames`` 6, on since session 57) lets a finger that stops after a
+    move land again (docs/filters.md, "The re-landing").
+    """
+
+    name: str = "adaptive_euro"
+    params: Mapping[str, float] = field(default_factory=dict)
+
+    def validate(self) -> None:
+        for k, v in self.params.items():
+            if not isinstance(v, (int, float)) or isinstance(v, bool):
+                raise ConfigError(f"filter.params.{k} = {_show(v)} must be a number")
+            try:
+                finite = math.isfinite(v)
+            except OverflowError:  # an integer beyond float range
+                finite = False
+            if not finite:
+                raise ConfigError(f"filter.params.{k} = {_show(v)} must be a finite number")

@@ -16,7 +16,7 @@ from scipy.optimize import linear_sum_assignment
 from .evidence import XY
 
 if TYPE_CHECKING:  # pragma: no cover
-    from .tracker import Track
+    from .track import Track
 
 #: the cost of a pair that may not be matched
 BIG = 1e9
