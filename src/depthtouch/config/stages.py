@@ -245,6 +245,13 @@ class AdaptConfig:
     bump_s: how long such a change must stay, still, before the surface is learned again
         (default 0.5 s).
     keep_out_mm: nothing within this distance of an active touch is absorbed (default 80 mm).
+    drift_kept_out: the unchanged pixels of what is never absorbed (within ``keep_out_mm`` of
+        such a touch, and changes that reach the image border) follow the drift pixel by pixel
+        too (``drift_tau_s``; default true). False keeps the surface under and around a held
+        fingertip where it was (the stripe's shift, ``drift_gain``, still moves it): at ToF
+        range the pixels around a tip lie within Tl, and the surface crept up under a finger
+        held 10 s by up to 2.2 mm, moving its point by about 4 mm (docs/accuracy.md section 7,
+        session 57).
     keep_all_touches: keep the surroundings of every active touch from absorption, not only of
         touches whose hand reaches in from the image border, and keep whole every change that
         reaches into such a touch's keep-out circle (its hand and arm) (default false). Where
@@ -272,6 +279,7 @@ class AdaptConfig:
     bump_fraction: float = 0.4
     bump_s: float = 0.5
     keep_out_mm: float = 80.0
+    drift_kept_out: bool = True
     keep_all_touches: bool = False
     edge_outside: bool = True
 

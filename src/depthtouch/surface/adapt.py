@@ -185,6 +185,7 @@ class SurfaceAdapter:
             depth, b.surface_mm, b.factor, b.tl_mm, b.valid, self._since, self._prev,
             self._still_tol, _upsample(self._exclude, self._up_y[y0:y1], self._up_x), y0, y1,
             float(b.to_mm), tt, float(cfg.absorb_s), bool(self._have_prev[k]), alpha,
+            bool(cfg.drift_kept_out),
         )
         self.absorbed_px += n_abs
         self._visit_t[k] = t
@@ -386,7 +387,7 @@ def _stripe_update(
     depth: np.ndarray, surface_mm: np.ndarray, factor: np.ndarray, tl_mm: np.ndarray,
     valid: np.ndarray, since: np.ndarray, prev: np.ndarray, still_tol: np.ndarray,
     exclude: np.ndarray, y0: int, y1: int, to_mm: float, tt: float, absorb_s: float,
-    have_prev: bool, alpha: float,
+    have_prev: bool, alpha: float, drift_kept_out: bool = True,
 ) -> int:
     """The stripe of rows y0:y1 of :meth:`SurfaceAdapter.update`, pixel by pixel in one
     compiled pass (updates ``surface_mm``, ``since`` and ``prev`` in place; returns the pixels
@@ -395,7 +396,7 @@ def _stripe_update(
     A pixel off the surface by more than its Tl is "changed"; its ``since`` restarts when it
     moved by more than ``still_tol`` since the last visit; a change still for ``absorb_s`` and
     not excluded becomes surface. Unchanged pixels follow the frame by ``alpha`` (drift;
-    alpha < 0: not this visit).
+    alpha < 0: not this visit), the excluded ones only with ``drift_kept_out``.
     """
     w = depth.shape[1]
     n_abs = 0
@@ -417,7 +418,7 @@ def _stripe_update(
             moved = (not have_prev) | (si == inf) | (abs(dm - prev_r[x]) > tol_r[x])
             si = t32 if moved else si
             absorb = changed & (tt - si >= absorb_s) & (excl_r[x] == 0)
-            drift = (not changed) & ok & drift_on
+            drift = (not changed) & ok & drift_on & (drift_kept_out | (excl_r[x] == 0))
             sr[x] = dm if absorb else (s + a * (dm - s) if drift else s)
             since_r[x] = si if (changed & (not absorb)) else inf
             prev_r[x] = dm
@@ -457,7 +458,7 @@ def warm_up() -> None:
     idx = np.arange(8)
     excl = _upsample(_changed_view(z16, f, f, b, idx, idx, 1.0, True), idx, idx)
     _stripe_update(z16, f, f + 1, f + 1, b, f.copy(), f.copy(), f + 1, excl, 0, 8, 1.0, 0.0, 0.5,
-                   False, -1.0)
+                   False, -1.0, True)
     _stripe_offset(z16, f, f + 1, f + 1, b, 0, 8, 1.0)
     median_f32(np.array([1.0, 2.0, 2.0, 3.5], np.float32), np.float32(1.0), np.float32(3.5))
     _shift_rows(f.copy(), b, 0, 8, np.float32(0.5))
