@@ -359,7 +359,11 @@ def _analysis(rows: list) -> list[str]:
         "`benchmarks/paired.py --against 204b25e` (the session's starting code, 8 rounds of 60 "
         'frames in one process), twice: 1.684 against 1.502 ms with per-round ratio B/A median '
         '1.025 (0.660-1.267), and 1.755 against 1.811 ms, median 1.036 (0.943-1.128), filter + '
-        'events 0.150 against 0.157 ms: no cost the rounds can tell from their spread.',
+        'events 0.150 against 0.157 ms: no cost the rounds can tell from their spread. The '
+        "surface adapter's stripe pass then took one more test per pixel "
+        '(`adapt.drift_kept_out`, on by default, as before); against 6673f81, the code before '
+        'it: 1.604 against 1.863 ms, per-round ratio median 1.124 (0.838-1.332), median + '
+        'surface update 0.485 against 0.540 ms.',
         "- The fingertip kernel reads small windows of six per-pixel surface arrays that the "
         "full-frame passes (median, band) push out of the cache each frame: the same call takes "
         "about half the time on warm data. Memory, not arithmetic, is most of what is left.",
