@@ -387,7 +387,7 @@ def _stripe_update(
     depth: np.ndarray, surface_mm: np.ndarray, factor: np.ndarray, tl_mm: np.ndarray,
     valid: np.ndarray, since: np.ndarray, prev: np.ndarray, still_tol: np.ndarray,
     exclude: np.ndarray, y0: int, y1: int, to_mm: float, tt: float, absorb_s: float,
-    have_prev: bool, alpha: float, drift_kept_out: bool = True,
+    have_prev: bool, alpha: float, drift_kept_out: bool,
 ) -> int:
     """The stripe of rows y0:y1 of :meth:`SurfaceAdapter.update`, pixel by pixel in one
     compiled pass (updates ``surface_mm``, ``since`` and ``prev`` in place; returns the pixels
