@@ -350,20 +350,20 @@ def _analysis(rows: list) -> list[str]:
         'code, 8 rounds of 60 frames in one process): 1.340 ms (this code) against 1.305 ms, '
         'per-round ratio B/A median 1.022 (0.765-1.069), tracking 0.152 against 0.145 ms: '
         'within the spread between rounds.',
-        '- Session 57 (the same AMD EPYC VM, OpenCV 5.1.0): one change on the per-frame path, '
+        '- Session 57 (the same AMD EPYC VM, OpenCV 5.1.0): two changes on the per-frame path: '
         "the path filter's re-landing on by default (`filter.params.reland_frames` 6; its test "
-        'runs inside the compiled filter step). `make bench` (the table above) read 640x480 with 5'
-        ' touches 1.665 ms (p95 2.033) and 0.696 ms without touches, over the 1.0 ms target, with '
-        "OpenCV's reference pass at 1.038 ms against 0.746 ms in session 56: the machine about 40 "
-        '% slower this hour (a first run read 1.748 ms, the reference 1.104 ms). '
-        "`benchmarks/paired.py --against 204b25e` (the session's starting code, 8 rounds of 60 "
-        'frames in one process), twice: 1.684 against 1.502 ms with per-round ratio B/A median '
-        '1.025 (0.660-1.267), and 1.755 against 1.811 ms, median 1.036 (0.943-1.128), filter + '
-        'events 0.150 against 0.157 ms: no cost the rounds can tell from their spread. The '
-        "surface adapter's stripe pass then took one more test per pixel "
-        '(`adapt.drift_kept_out`, on by default, as before); against 6673f81, the code before '
-        'it: 1.604 against 1.863 ms, per-round ratio median 1.124 (0.838-1.332), median + '
-        'surface update 0.485 against 0.540 ms.',
+        "runs inside the compiled filter step), and one more test per pixel in the surface "
+        "adapter's stripe pass (`adapt.drift_kept_out`, on by default, as before). After the "
+        'first, `make bench` read 640x480 with 5 touches 1.748 ms and then 1.665 ms (p95 2.033),'
+        ' 0.696 ms without touches, with OpenCV\'s reference pass at 1.104 and 1.038 ms against '
+        '0.746 ms in session 56: the machine about 40 % slower this hour. After the second, the '
+        'table above: 1.955 ms (p95 2.455) and 0.713 ms, the reference pass 0.962 ms. '
+        "`benchmarks/paired.py` (8 rounds of 60 frames in one process) against the session's "
+        'starting code (204b25e), twice: 1.684 against 1.502 ms with per-round ratio B/A median '
+        '1.025 (0.660-1.267), and 1.755 against 1.811 ms, median 1.036 (0.943-1.128); the '
+        "adapter's test against 6673f81, the code before it: 1.604 against 1.863 ms, median "
+        '1.124 (0.838-1.332), median + surface update 0.485 against 0.540 ms. No cost the rounds '
+        'can tell from their spread; over the 1.0 ms target on this machine this hour either way.',
         "- The fingertip kernel reads small windows of six per-pixel surface arrays that the "
         "full-frame passes (median, band) push out of the cache each frame: the same call takes "
         "about half the time on warm data. Memory, not arithmetic, is most of what is left.",
