@@ -73,14 +73,20 @@ def test_finger_held_still_ten_seconds_is_never_absorbed():
     assert last and np.hypot(last[0].x - f.x, last[0].y - f.y) * MM_PER_PX < 3.0
 
 
-@pytest.mark.parametrize("drift_kept_out", [True, False])
-def test_the_surface_under_a_held_finger_follows_its_drift_only_with_drift_kept_out(
-        drift_kept_out):
+@pytest.mark.parametrize(("adapt", "follows"), [
+    ({}, True),
+    ({"drift_kept_out": False}, False),
+    ({"drift_hold_mm": 40.0}, False),
+    ({"drift_hold_mm": 2.0}, True),
+])
+def test_the_surface_under_a_held_finger_follows_its_drift_unless_kept_or_held(adapt, follows):
     """A finger held still 10 s with the table raised 2 mm around its tip (under Tl: unchanged
-    pixels, as the mixed pixels around a tip at ToF range are). With adapt.drift_kept_out (the
-    default) those pixels follow the frame as drift does (10 s time constant: about 1.2 mm up
-    after 10 s); without, the surface within the touch's keep-out stays where it was learned,
-    while the same rise far from any touch is followed either way."""
+    pixels, as the mixed pixels around a tip at ToF range are). By default those pixels follow
+    the frame as drift does (10 s time constant: about 1.2 mm up after 10 s); with
+    adapt.drift_kept_out false (everything never absorbed) or adapt.drift_hold_mm covering them
+    (the raised ring reaches 40 mm from the tip; 2 mm covers only the finger itself) the
+    surface there stays where it was learned, while the same rise far from any touch is
+    followed either way."""
     f = Finger(320, 240, 90)
     hm = render_heights((480, 640), [f], MM_PER_PX)
     raised = hm.copy()
@@ -88,13 +94,13 @@ def test_the_surface_under_a_held_finger_follows_its_drift_only_with_drift_kept_
     far = (slice(60, 90), slice(60, 100))  # 160 mm and more from it
     for sl in (near, far):
         raised[sl] = np.maximum(raised[sl], 2.0)
-    cfg = config_from_dict({"adapt": {"drift_kept_out": drift_kept_out}})
+    cfg = config_from_dict({"adapt": adapt})
     p, log = run([lambda k: raised] * int(10 * FPS), cfg)
     s = p.surface.bounds.surface_mm
     ring = s[near][raised[near] == 2.0]
     assert 1000.0 - float(np.median(s[far])) > 0.8  # followed
     rise = 1000.0 - float(np.median(ring))
-    assert (rise > 0.8) if drift_kept_out else (abs(rise) < 0.3)
+    assert (rise > 0.8) if follows else (abs(rise) < 0.3)
     states = [e.state for _, evs in log for e in evs]
     assert states.count("down") == 1 and "up" not in states
 

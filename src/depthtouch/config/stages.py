@@ -252,6 +252,10 @@ class AdaptConfig:
         range the pixels around a tip lie within Tl, and the surface crept up under a finger
         held 10 s by up to 2.2 mm, moving its point by about 4 mm (docs/accuracy.md section 7,
         session 57).
+    drift_hold_mm: within this distance of a touch kept out (as for ``keep_out_mm``) the
+        unchanged pixels do not follow the drift pixel by pixel (the stripe's shift still
+        moves them): a narrower form of ``drift_kept_out`` false, for the surface under a
+        held tip only (default 0 = off).
     keep_all_touches: keep the surroundings of every active touch from absorption, not only of
         touches whose hand reaches in from the image border, and keep whole every change that
         reaches into such a touch's keep-out circle (its hand and arm) (default false). Where
@@ -280,6 +284,7 @@ class AdaptConfig:
     bump_s: float = 0.5
     keep_out_mm: float = 80.0
     drift_kept_out: bool = True
+    drift_hold_mm: float = 0.0
     keep_all_touches: bool = False
     edge_outside: bool = True
 
@@ -292,6 +297,7 @@ class AdaptConfig:
         _range("adapt.bump_fraction", self.bump_fraction, 0.0, 1.0, lo_open=True)
         _range("adapt.bump_s", self.bump_s, 0.0, 60.0)
         _range("adapt.keep_out_mm", self.keep_out_mm, 0.0, 1000.0)
+        _range("adapt.drift_hold_mm", self.drift_hold_mm, 0.0, 1000.0)
 
 
 @dataclass(frozen=True)

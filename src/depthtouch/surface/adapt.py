@@ -15,7 +15,9 @@ horizontal stripe of the image per frame (so the cost is spread evenly):
   attached to an arm that enters from outside the view, and the arm rises above the band), and
   anything within ``keep_out_mm`` of an active touch whose hand reaches that border (with
   ``keep_all_touches``: of every active touch, and the whole change that reaches into that
-  circle). A finger held still for minutes stays a finger, as long as its arm reaches the
+  circle). Within ``drift_hold_mm`` of an active touch, the per-pixel follow of drift stops
+  too (the mixed pixels around a held tip at range lie within Tl and would creep up under it).
+  A finger held still for minutes stays a finger, as long as its arm reaches the
   border (the simulator's arm ends at the shoulder: from about 1.3 m the whole arm is in view,
   and a hand held still there is absorbed unless ``keep_all_touches``). A pixel that lost its
   depth over a usable surface pixel is a change too (an arm nearer than the camera measures,
@@ -44,6 +46,10 @@ _BLOCK = 8  # the bump check compares a 1/8 view (2x2 means, every 8th pixel)
 # a stripe's median offset moves it only when at least this share of its usable pixels are
 # unchanged (else the median would be a hand's or an object's)
 _OFFSET_MIN_SHARE = 0.25
+# the exclusion map's bits: never absorbed (a person, a touch's keep-out circle); a held tip's
+# surroundings that do not follow the per-pixel drift (``drift_hold_mm``)
+_KEEP = 1
+_HOLD = 2
 
 
 class SurfaceAdapter:
@@ -185,7 +191,7 @@ class SurfaceAdapter:
             depth, b.surface_mm, b.factor, b.tl_mm, b.valid, self._since, self._prev,
             self._still_tol, _upsample(self._exclude, self._up_y[y0:y1], self._up_x), y0, y1,
             float(b.to_mm), tt, float(cfg.absorb_s), bool(self._have_prev[k]), alpha,
-            bool(cfg.drift_kept_out),
+            np.uint8(_KEEP | _HOLD if not cfg.drift_kept_out else _HOLD),
         )
         self.absorbed_px += n_abs
         self._visit_t[k] = t
@@ -209,17 +215,22 @@ class SurfaceAdapter:
         lev = part_levels(changed | self._outside, 1.0, math.inf)
         person = (lev == 2) & (changed > 0)
         near = np.zeros_like(changed)
+        hold = np.zeros_like(changed)
         if len(touch_xy_px):
             r = max(1, int(round(cfg.keep_out_mm / b.mm_per_px / _SCALE)))
+            r_hold = int(round(cfg.drift_hold_mm / b.mm_per_px / _SCALE))
             for x_px, y_px in np.asarray(touch_xy_px, np.float64):
-                cv2.circle(near, (int(x_px / _SCALE), int(y_px / _SCALE)), r, 1, thickness=-1)
+                centre = (int(x_px / _SCALE), int(y_px / _SCALE))
+                cv2.circle(near, centre, r, _KEEP, thickness=-1)
+                if cfg.drift_hold_mm > 0.0:
+                    cv2.circle(hold, centre, r_hold, _HOLD, thickness=-1)
             if cfg.keep_all_touches:
                 # a touch's hand is a person's also where its arm ends inside the view: every
                 # change that reaches into a touch's circle is kept whole
                 _, labels = cv2.connectedComponents(changed, connectivity=8)
                 held = np.unique(labels[(near > 0) & (changed > 0)])
                 person |= np.isin(labels, held[held > 0])
-        self._exclude = dilate3x3(person.view(np.uint8)) | near
+        self._exclude = dilate3x3(person.view(np.uint8)) | near | hold
 
 
 def _nearest(n_out: int, n_in: int) -> np.ndarray:
@@ -387,16 +398,16 @@ def _stripe_update(
     depth: np.ndarray, surface_mm: np.ndarray, factor: np.ndarray, tl_mm: np.ndarray,
     valid: np.ndarray, since: np.ndarray, prev: np.ndarray, still_tol: np.ndarray,
     exclude: np.ndarray, y0: int, y1: int, to_mm: float, tt: float, absorb_s: float,
-    have_prev: bool, alpha: float, drift_kept_out: bool,
+    have_prev: bool, alpha: float, drift_skip: np.uint8,
 ) -> int:
     """The stripe of rows y0:y1 of :meth:`SurfaceAdapter.update`, pixel by pixel in one
     compiled pass (updates ``surface_mm``, ``since`` and ``prev`` in place; returns the pixels
-    absorbed). ``exclude``: the stripe's rows of the exclusion map (non-zero = never absorb).
+    absorbed). ``exclude``: the stripe's rows of the exclusion map (bit ``_KEEP``: never absorb).
 
     A pixel off the surface by more than its Tl is "changed"; its ``since`` restarts when it
     moved by more than ``still_tol`` since the last visit; a change still for ``absorb_s`` and
     not excluded becomes surface. Unchanged pixels follow the frame by ``alpha`` (drift;
-    alpha < 0: not this visit), the excluded ones only with ``drift_kept_out``.
+    alpha < 0: not this visit), except those whose exclusion bits meet ``drift_skip``.
     """
     w = depth.shape[1]
     n_abs = 0
@@ -404,6 +415,7 @@ def _stripe_update(
     drift_on = alpha >= 0.0
     t32 = np.float32(tt)
     inf = np.float32(np.inf)
+    keep = np.uint8(_KEEP)
     # without branches (selects), row by row: the compiler vectorises it
     for y in range(y0, y1):
         dr, sr, fr, tr, vr = depth[y], surface_mm[y], factor[y], tl_mm[y], valid[y]
@@ -417,8 +429,8 @@ def _stripe_update(
             si = since_r[x]
             moved = (not have_prev) | (si == inf) | (abs(dm - prev_r[x]) > tol_r[x])
             si = t32 if moved else si
-            absorb = changed & (tt - si >= absorb_s) & (excl_r[x] == 0)
-            drift = (not changed) & ok & drift_on & (drift_kept_out | (excl_r[x] == 0))
+            absorb = changed & (tt - si >= absorb_s) & ((excl_r[x] & keep) == 0)
+            drift = (not changed) & ok & drift_on & ((excl_r[x] & drift_skip) == 0)
             sr[x] = dm if absorb else (s + a * (dm - s) if drift else s)
             since_r[x] = si if (changed & (not absorb)) else inf
             prev_r[x] = dm
@@ -458,7 +470,7 @@ def warm_up() -> None:
     idx = np.arange(8)
     excl = _upsample(_changed_view(z16, f, f, b, idx, idx, 1.0, True), idx, idx)
     _stripe_update(z16, f, f + 1, f + 1, b, f.copy(), f.copy(), f + 1, excl, 0, 8, 1.0, 0.0, 0.5,
-                   False, -1.0, True)
+                   False, -1.0, np.uint8(_HOLD))
     _stripe_offset(z16, f, f + 1, f + 1, b, 0, 8, 1.0)
     median_f32(np.array([1.0, 2.0, 2.0, 3.5], np.float32), np.float32(1.0), np.float32(3.5))
     _shift_rows(f.copy(), b, 0, 8, np.float32(0.5))
