@@ -464,9 +464,9 @@ def test_skin_check_set_raises_the_hands_noise_at_placements_of_its_own() -> Non
     both hands, at placements and seeds no other suite uses (but rest-tof, made after it ran to
     try its forearm placement with other seeds), every situation on both halves; the hand's
     noise is raised nowhere else but in the resting-forearm sets made after it (rest-tof,
-    rest-tof2, rest-tof3, and hard-fresh6's forearm before ToF)."""
-    cases, others = _own_check_set("skin-tof", 40, leave_out=("rest-tof", "rest-tof2",
-                                                               "rest-tof3", "hard-fresh6"))
+    rest-tof2, rest-tof3, hard-fresh6's forearm before ToF and hard-fresh7's)."""
+    cases, others = _own_check_set("skin-tof", 40, leave_out=("rest-tof", "rest-tof2", "rest-tof3",
+                                                               "hard-fresh6", "hard-fresh7"))
     assert {c.skin_noise for c in cases} == {1.5} and {c.camera for c in cases} == {"kinect-v2-hard"}
     assert {c.hand for c in cases} == {"capsule", "anatomic"}
     assert all("/skin1.5/" in c.label for c in cases)
@@ -571,6 +571,23 @@ def test_sixth_check_set_brings_every_arm_in_with_a_body_at_placements_of_its_ow
     for g in {c.group for c in cases}:
         assert {c.hand for c in cases if c.group == g} == {"capsule", "anatomic"}
     _every_group_on_both_halves(cases)
+
+
+def test_seventh_check_set_has_its_own_seeds_and_placements_and_two_harder_groups() -> None:
+    """hard-fresh7: hard-fresh6's situations at placements and seeds no other suite uses, both
+    hands, the body on, every situation on both halves; fingers at 55 deg, and a breathing ToF
+    camera that drops frames and stereo over noisier skin beside them."""
+    cases, _ = _own_check_set("hard-fresh7", 100)
+    assert all(c.body and "/body/" in c.label for c in cases)
+    assert {c.scene for c in cases} == {c.scene for c in load_suite("hard").cases} | {"hold"}
+    for g in {c.group for c in cases}:
+        assert {c.hand for c in cases if c.group == g} == {"capsule", "anatomic"}
+    _every_group_on_both_halves(cases)
+    assert {c.pitch_deg for c in cases} == {None, 55.0}
+    breathing = [c for c in cases if c.breathing_mm > 0]
+    assert breathing and all(c.drop_rate == 0.05 and c.camera == "kinect-v2-hard"
+                             for c in breathing)
+    assert {c.skin_noise for c in cases if c.group == "noisy-skin-stereo"} == {2.0}
 
 
 def test_missed_contacts_are_named_on_a_rendered_recording_and_in_the_report() -> None:
