@@ -5,6 +5,7 @@ import pytest
 
 from depthtouch.config import PipelineConfig, config_from_dict
 from depthtouch.pipeline import Pipeline
+from depthtouch.surface.adapt import held_since
 from depthtouch.types import Frame
 from synth import K_640, Finger, render_heights
 
@@ -73,20 +74,23 @@ def test_finger_held_still_ten_seconds_is_never_absorbed():
     assert last and np.hypot(last[0].x - f.x, last[0].y - f.y) * MM_PER_PX < 3.0
 
 
-@pytest.mark.parametrize(("adapt", "follows"), [
-    ({}, True),
-    ({"drift_kept_out": False}, False),
-    ({"drift_hold_mm": 40.0}, False),
-    ({"drift_hold_mm": 2.0}, True),
+@pytest.mark.parametrize(("adapt", "rise_mm"), [
+    ({}, (0.8, 2.0)),
+    ({"drift_kept_out": False}, (-0.3, 0.3)),
+    ({"drift_hold_mm": 40.0}, (-0.3, 0.3)),
+    ({"drift_hold_mm": 2.0}, (0.8, 2.0)),
+    ({"drift_hold_mm": 40.0, "drift_hold_after_s": 3.0}, (0.2, 0.7)),
+    ({"drift_hold_mm": 40.0, "drift_hold_after_s": 20.0}, (0.8, 2.0)),
 ])
-def test_the_surface_under_a_held_finger_follows_its_drift_unless_kept_or_held(adapt, follows):
+def test_the_surface_under_a_held_finger_follows_its_drift_unless_kept_or_held(adapt, rise_mm):
     """A finger held still 10 s with the table raised 2 mm around its tip (under Tl: unchanged
     pixels, as the mixed pixels around a tip at ToF range are). By default those pixels follow
     the frame as drift does (10 s time constant: about 1.2 mm up after 10 s); with
     adapt.drift_kept_out false (everything never absorbed) or adapt.drift_hold_mm covering them
     (the raised ring reaches 40 mm from the tip; 2 mm covers only the finger itself) the
-    surface there stays where it was learned, while the same rise far from any touch is
-    followed either way."""
+    surface there stays where it was learned; with drift_hold_after_s 3 it follows for the
+    hold's first 3 s only (about 0.4 mm), and with 20 s (longer than the hold) all along. The
+    same rise far from any touch is followed either way."""
     f = Finger(320, 240, 90)
     hm = render_heights((480, 640), [f], MM_PER_PX)
     raised = hm.copy()
@@ -100,9 +104,21 @@ def test_the_surface_under_a_held_finger_follows_its_drift_unless_kept_or_held(a
     ring = s[near][raised[near] == 2.0]
     assert 1000.0 - float(np.median(s[far])) > 0.8  # followed
     rise = 1000.0 - float(np.median(ring))
-    assert (rise > 0.8) if follows else (abs(rise) < 0.3)
+    assert rise_mm[0] < rise < rise_mm[1]
     states = [e.state for _, evs in log for e in evs]
     assert states.count("down") == 1 and "up" not in states
+
+
+def test_held_since_keeps_the_time_of_a_touch_that_stayed():
+    """A point within the radius of one of the last call's keeps that one's time; a point that
+    moved, or a new one, starts now; with no points before, every point starts now."""
+    prev = np.array([[100.0, 100.0], [300.0, 50.0]])
+    since = np.array([1.0, 2.5])
+    pts = np.array([[301.0, 51.0], [100.0, 110.0], [500.0, 400.0]])
+    np.testing.assert_array_equal(held_since(pts, prev, since, 4.0, 3.0), [2.5, 4.0, 4.0])
+    np.testing.assert_array_equal(held_since(pts, np.zeros((0, 2)), np.zeros(0), 4.0, 3.0),
+                                  [4.0, 4.0, 4.0])
+    assert held_since(np.zeros((0, 2)), prev, since, 4.0, 3.0).shape == (0,)
 
 
 @pytest.mark.parametrize("keep_all", [False, True])

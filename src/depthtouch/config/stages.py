@@ -256,6 +256,9 @@ class AdaptConfig:
         unchanged pixels do not follow the drift pixel by pixel (the stripe's shift still
         moves them): a narrower form of ``drift_kept_out`` false, for the surface under a
         held tip only (default 0 = off).
+    drift_hold_after_s: ``drift_hold_mm`` applies to a touch only once it has stood within
+        half that distance of where it was for this long (checked once per stripe cycle;
+        default 0: from its first cycle).
     keep_all_touches: keep the surroundings of every active touch from absorption, not only of
         touches whose hand reaches in from the image border, and keep whole every change that
         reaches into such a touch's keep-out circle (its hand and arm) (default false). Where
@@ -285,6 +288,7 @@ class AdaptConfig:
     keep_out_mm: float = 80.0
     drift_kept_out: bool = True
     drift_hold_mm: float = 0.0
+    drift_hold_after_s: float = 0.0
     keep_all_touches: bool = False
     edge_outside: bool = True
 
@@ -298,6 +302,7 @@ class AdaptConfig:
         _range("adapt.bump_s", self.bump_s, 0.0, 60.0)
         _range("adapt.keep_out_mm", self.keep_out_mm, 0.0, 1000.0)
         _range("adapt.drift_hold_mm", self.drift_hold_mm, 0.0, 1000.0)
+        _range("adapt.drift_hold_after_s", self.drift_hold_after_s, 0.0, 3600.0)
 
 
 @dataclass(frozen=True)

@@ -86,6 +86,9 @@ class SurfaceAdapter:
         self._outside = ((part_levels((~self._view_ok).view(np.uint8), 1.0, math.inf) == 2)
                          & self.config.edge_outside).view(np.uint8)
         self._exclude = np.zeros((sh, sw), np.uint8)
+        # the touches of the last stripe cycle (px) and since when each stood there (s)
+        self._held_pts = np.zeros((0, 2))
+        self._held_since = np.zeros(0)
         self._bump_since: float | None = None
         # the bump check's 1/8 views: of the surface (refreshed each stripe cycle) and of the
         # fixed usable mask and threshold
@@ -172,7 +175,7 @@ class SurfaceAdapter:
         self._k = (k + 1) % (len(self._stripes) - 1)
         if k == 0:
             self._coarse = None  # the surface moved on: refresh its 1/8 view
-            self._exclusions(depth, touch_xy_px)
+            self._exclusions(depth, touch_xy_px, t)
         y0, y1 = int(self._stripes[k]), int(self._stripes[k + 1])
         tt = float(np.float32(t - self._t0)) if self._t0 is not None else 0.0
         if self._t0 is None:
@@ -203,10 +206,17 @@ class SurfaceAdapter:
         if n_abs or shifted or self._visits[k] % 8 == 0:
             refresh_rows(b, y0, y1)
 
-    def _exclusions(self, depth: np.ndarray, touch_xy_px: np.ndarray) -> None:
+    def _exclusions(self, depth: np.ndarray, touch_xy_px: np.ndarray, t: float) -> None:
         """What must never be absorbed: changes connected to the image border, and the
-        surroundings of active touches (a 1/4 resolution view, once per stripe cycle)."""
+        surroundings of active touches (a 1/4 resolution view, once per stripe cycle); and
+        where the per-pixel drift follow stops (``drift_hold_mm`` around touches held for
+        ``drift_hold_after_s``)."""
         cfg, b = self.config, self.bounds
+        pts = np.asarray(touch_xy_px, np.float64).reshape(-1, 2)
+        hold_px = cfg.drift_hold_mm / b.mm_per_px
+        self._held_since = held_since(pts, self._held_pts, self._held_since, t,
+                                      max(1.0, 0.5 * hold_px))
+        self._held_pts = pts
         changed = _changed_view(depth, b.surface_mm, self._view_tl, self._view_ok, self._view_y,
                                 self._view_x, float(b.to_mm), cfg.edge_outside)
         # Changes connected to the image border are people: never absorbed. A stereo camera's
@@ -218,11 +228,11 @@ class SurfaceAdapter:
         hold = np.zeros_like(changed)
         if len(touch_xy_px):
             r = max(1, int(round(cfg.keep_out_mm / b.mm_per_px / _SCALE)))
-            r_hold = int(round(cfg.drift_hold_mm / b.mm_per_px / _SCALE))
-            for x_px, y_px in np.asarray(touch_xy_px, np.float64):
+            r_hold = int(round(hold_px / _SCALE))
+            for (x_px, y_px), since in zip(pts, self._held_since, strict=True):
                 centre = (int(x_px / _SCALE), int(y_px / _SCALE))
                 cv2.circle(near, centre, r, _KEEP, thickness=-1)
-                if cfg.drift_hold_mm > 0.0:
+                if cfg.drift_hold_mm > 0.0 and t - since >= cfg.drift_hold_after_s:
                     cv2.circle(hold, centre, r_hold, _HOLD, thickness=-1)
             if cfg.keep_all_touches:
                 # a touch's hand is a person's also where its arm ends inside the view: every
@@ -231,6 +241,19 @@ class SurfaceAdapter:
                 held = np.unique(labels[(near > 0) & (changed > 0)])
                 person |= np.isin(labels, held[held > 0])
         self._exclude = dilate3x3(person.view(np.uint8)) | near | hold
+
+
+def held_since(pts: np.ndarray, prev_pts: np.ndarray, prev_since: np.ndarray, t: float,
+               radius_px: float) -> np.ndarray:
+    """Since when each of ``pts`` (N, 2) has stood where it is: the time of the nearest of
+    the last call's points ``prev_pts`` within ``radius_px`` (its ``prev_since``), else ``t``."""
+    out = np.full(len(pts), float(t))
+    if len(pts) and len(prev_pts):
+        d = np.hypot(pts[:, None, 0] - prev_pts[None, :, 0], pts[:, None, 1] - prev_pts[None, :, 1])
+        j = np.argmin(d, axis=1)
+        near = d[np.arange(len(pts)), j] <= radius_px
+        out[near] = prev_since[j[near]]
+    return out
 
 
 def _nearest(n_out: int, n_in: int) -> np.ndarray:
