@@ -364,6 +364,15 @@ def _analysis(rows: list) -> list[str]:
         "adapter's test against 6673f81, the code before it: 1.604 against 1.863 ms, median "
         '1.124 (0.838-1.332), median + surface update 0.485 against 0.540 ms. No cost the rounds '
         'can tell from their spread; over the 1.0 ms target on this machine this hour either way.',
+        '- Session 58 (an AMD EPYC VM, OpenCV 5.1.0; measured on a new machine the session after): '
+        "two options in the surface adapter's stripe pass, off by default (`adapt.drift_hold_mm`, "
+        "`adapt.drift_hold_after_s`): one more bit in the exclusion map it already builds, and "
+        "when on, a small list of the last cycle's touches. `make bench` (the table above) read "
+        '640x480 with 5 touches 1.183 ms (p95 1.637) and 0.401 ms without touches, over the 1.0 '
+        "ms target, with OpenCV's reference pass at 0.859 ms. `benchmarks/paired.py --against "
+        "038c37b` (the session's starting code, 8 rounds of 60 frames in one process): 1.126 ms "
+        '(this code) against 1.163 ms, per-round ratio B/A median 1.012 (0.879-1.327), median + '
+        'surface update 0.357 against 0.361 ms: no cost the rounds can tell.',
         "- The fingertip kernel reads small windows of six per-pixel surface arrays that the "
         "full-frame passes (median, band) push out of the cache each frame: the same call takes "
         "about half the time on warm data. Memory, not arithmetic, is most of what is left.",

@@ -292,10 +292,10 @@ def test_exclusions_match_the_opencv_version():
         d = cv2.medianBlur(rec.depth[i], 3)
         touch = np.array([[100.0 + i, 200.0], [300.0, 50.0 + i]])
         want = _exclusions_opencv(a, d, touch)
-        kept = a._exclude
-        a._exclusions(d, touch)
+        kept = a._exclude, a._held_pts, a._held_since
+        a._exclusions(d, touch, float(rec.timestamps_s[i]))
         got = _upsample(a._exclude, a._up_y, a._up_x) > 0
-        a._exclude = kept
+        a._exclude, a._held_pts, a._held_since = kept
         np.testing.assert_array_equal(got, want)
         compared += int(want.any())
     assert compared > 20

@@ -255,10 +255,14 @@ class AdaptConfig:
     drift_hold_mm: within this distance of a touch kept out (as for ``keep_out_mm``) the
         unchanged pixels do not follow the drift pixel by pixel (the stripe's shift still
         moves them): a narrower form of ``drift_kept_out`` false, for the surface under a
-        held tip only (default 0 = off).
+        held tip only (default 0 = off; 25 mm failed its rules: still-finger jitter up on held-out
+        halves where touches move on after standing a moment, docs/accuracy.md section 7,
+        session 58).
     drift_hold_after_s: ``drift_hold_mm`` applies to a touch only once it has stood within
         half that distance of where it was for this long (checked once per stripe cycle;
-        default 0: from its first cycle).
+        default 0: from its first cycle). With 25 mm and 2 s: hard-fresh6's tune jitter 0.90 ->
+        0.81 mm and long-hold's 0.59 -> 0.36 mm, nothing else moved, but no fall on a set run
+        once (hard-fresh7); off.
     keep_all_touches: keep the surroundings of every active touch from absorption, not only of
         touches whose hand reaches in from the image border, and keep whole every change that
         reaches into such a touch's keep-out circle (its hand and arm) (default false). Where
