@@ -612,3 +612,17 @@ def test_missed_contacts_are_named_on_a_rendered_recording_and_in_the_report() -
     assert len(lines) == 1 and lines[0].startswith(f"{half_of(case)}: missed 4 contacts")
     assert "nothing in the band" in lines[0]
     assert any("nothing in the band" in line for line in halves_markdown(rep))
+
+
+def test_lift_check_set_holds_and_taps_at_its_own_placements() -> None:
+    """lift-check: 10 s holds (ToF at range, steep fingers) and taps after a hover, at
+    placements and seeds no other suite uses, bodies on, both hands in every group, every group
+    on both halves."""
+    cases, _ = _own_check_set("lift-check", 56)
+    assert all(c.body for c in cases)
+    assert {c.scene for c in cases} == {"hold", "taps", "approach", "hovergroup"}
+    for g in {c.group for c in cases}:
+        assert {c.hand for c in cases if c.group == g} == {"capsule", "anatomic"}
+    _every_group_on_both_halves(cases)
+    assert {c.pitch_deg for c in cases if c.group in ("hold-steep", "taps-steep")} == {55.0, 60.0,
+                                                                                       65.0}
