@@ -214,9 +214,10 @@ class SurfaceAdapter:
         cfg, b = self.config, self.bounds
         pts = np.asarray(touch_xy_px, np.float64).reshape(-1, 2)
         hold_px = cfg.drift_hold_mm / b.mm_per_px
-        self._held_since = held_since(pts, self._held_pts, self._held_since, t,
-                                      max(1.0, 0.5 * hold_px))
-        self._held_pts = pts
+        if hold_px > 0.0:  # only where the hold is on: the record is its alone
+            self._held_since = held_since(pts, self._held_pts, self._held_since, t,
+                                          max(1.0, 0.5 * hold_px))
+            self._held_pts = pts
         changed = _changed_view(depth, b.surface_mm, self._view_tl, self._view_ok, self._view_y,
                                 self._view_x, float(b.to_mm), cfg.edge_outside)
         # Changes connected to the image border are people: never absorbed. A stereo camera's
@@ -229,10 +230,10 @@ class SurfaceAdapter:
         if len(touch_xy_px):
             r = max(1, int(round(cfg.keep_out_mm / b.mm_per_px / _SCALE)))
             r_hold = int(round(hold_px / _SCALE))
-            for (x_px, y_px), since in zip(pts, self._held_since, strict=True):
+            for i, (x_px, y_px) in enumerate(pts):
                 centre = (int(x_px / _SCALE), int(y_px / _SCALE))
                 cv2.circle(near, centre, r, _KEEP, thickness=-1)
-                if cfg.drift_hold_mm > 0.0 and t - since >= cfg.drift_hold_after_s:
+                if hold_px > 0.0 and t - self._held_since[i] >= cfg.drift_hold_after_s:
                     cv2.circle(hold, centre, r_hold, _HOLD, thickness=-1)
             if cfg.keep_all_touches:
                 # a touch's hand is a person's also where its arm ends inside the view: every
