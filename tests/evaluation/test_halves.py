@@ -399,6 +399,15 @@ def _own_check_set(name: str, n: int, leave_out: tuple[str, ...] = ()) -> tuple[
     return cases, others
 
 
+def _bodies_and_both_hands_on_both_halves(cases: list) -> None:
+    """Every case with the body on, both hand models in every group, every group on both
+    halves (the check sets from hard-fresh6 on)."""
+    assert all(c.body for c in cases)
+    for g in {c.group for c in cases}:
+        assert {c.hand for c in cases if c.group == g} == {"capsule", "anatomic"}
+    _every_group_on_both_halves(cases)
+
+
 def _every_group_on_both_halves(cases: list) -> None:
     """Each of the cases' groups (situations) has cases on the tune and on the held-out half."""
     for group in {c.group for c in cases}:
@@ -566,11 +575,9 @@ def test_sixth_check_set_brings_every_arm_in_with_a_body_at_placements_of_its_ow
     """hard-fresh6: hard's scenes (and a 10 s hold) with the body on, at placements and seeds no
     other suite uses, both hands, every situation on both halves."""
     cases, others = _own_check_set("hard-fresh6", 88)
-    assert all(c.body and "/body/" in c.label for c in cases)
+    assert all("/body/" in c.label for c in cases)
     assert {c.scene for c in cases} == {c.scene for c in load_suite("hard").cases} | {"hold"}
-    for g in {c.group for c in cases}:
-        assert {c.hand for c in cases if c.group == g} == {"capsule", "anatomic"}
-    _every_group_on_both_halves(cases)
+    _bodies_and_both_hands_on_both_halves(cases)
 
 
 def test_seventh_check_set_has_its_own_seeds_and_placements_and_two_harder_groups() -> None:
@@ -578,11 +585,9 @@ def test_seventh_check_set_has_its_own_seeds_and_placements_and_two_harder_group
     hands, the body on, every situation on both halves; fingers at 55 deg, and a breathing ToF
     camera that drops frames and stereo over noisier skin beside them."""
     cases, _ = _own_check_set("hard-fresh7", 100)
-    assert all(c.body and "/body/" in c.label for c in cases)
+    assert all("/body/" in c.label for c in cases)
     assert {c.scene for c in cases} == {c.scene for c in load_suite("hard").cases} | {"hold"}
-    for g in {c.group for c in cases}:
-        assert {c.hand for c in cases if c.group == g} == {"capsule", "anatomic"}
-    _every_group_on_both_halves(cases)
+    _bodies_and_both_hands_on_both_halves(cases)
     assert {c.pitch_deg for c in cases} == {None, 55.0}
     breathing = [c for c in cases if c.breathing_mm > 0]
     assert breathing and all(c.drop_rate == 0.05 and c.camera == "kinect-v2-hard"
@@ -619,10 +624,7 @@ def test_lift_check_set_holds_and_taps_at_its_own_placements() -> None:
     placements and seeds no other suite uses, bodies on, both hands in every group, every group
     on both halves."""
     cases, _ = _own_check_set("lift-check", 56)
-    assert all(c.body for c in cases)
     assert {c.scene for c in cases} == {"hold", "taps", "approach", "hovergroup"}
-    for g in {c.group for c in cases}:
-        assert {c.hand for c in cases if c.group == g} == {"capsule", "anatomic"}
-    _every_group_on_both_halves(cases)
+    _bodies_and_both_hands_on_both_halves(cases)
     assert {c.pitch_deg for c in cases if c.group in ("hold-steep", "taps-steep")} == {55.0, 60.0,
                                                                                        65.0}
