@@ -754,6 +754,33 @@ def test_what_is_not_a_steep_finger_never_goes_down(kw: dict[str, float]) -> Non
     assert not any(run(tr, [_steep_tip(**kw)] * 12))
 
 
+def _steep_tip_at(x: float) -> TouchPoints:
+    """:func:`_steep_tip` moved to image x (its hand 4 px behind it)."""
+    return TouchPoints(np.array([[x, 100.0]]), np.array([15.0]), np.array([100]),
+                       np.array([[x, 104.0]]), None, np.array([10]), np.array([83.0]),
+                       np.array([5.0]))
+
+
+def test_a_steep_top_counts_only_where_the_contact_stood_the_frame_before() -> None:
+    """steep_still_mm: a steep finger standing still goes down a frame later than without it
+    (its first frame counts nothing), and steep tops that jump 12 mm from frame to frame
+    (the specks of a hand's raised edge) never do; off, the same jumps go down."""
+    on = TrackingConfig(steep_still_mm=8.0)
+    states = [[s for _, s in f] for f in run(Tracker(on, scale_mm_per_px=1.0),
+                                             [_steep_tip()] * 9)]
+    assert states[:6] == [[]] * 6
+    assert states[6] == ["down"]
+    jumps = [_steep_tip_at(100.0 + 12.0 * (k % 2)) for k in range(16)]
+    assert not any(run(Tracker(on, scale_mm_per_px=1.0), jumps))
+    off = Tracker(TrackingConfig(), scale_mm_per_px=1.0)
+    assert "down" in [s for f in run(off, jumps) for _, s in f]
+
+
+def test_steep_still_mm_is_checked() -> None:
+    with pytest.raises(ValueError, match="steep_still_mm"):
+        TrackingConfig(steep_still_mm=-1.0).validate()
+
+
 def test_a_points_offset_moves_what_is_reported_not_what_is_tracked() -> None:
     """TouchPoints.offset_px (the Tl shift) goes to Track.report_px; matching uses xy_px."""
     tip = TouchPoints(np.array([[100.0, 100.0]]), np.array([5.0]), np.array([300]),

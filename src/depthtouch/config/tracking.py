@@ -243,6 +243,12 @@ class TrackingConfig:
         fingers on their way down); a top up to 22 mm lost the contact; no change on the
         default suite. steep_evidence 0 turns it off (ranges [0, 1], areas [0, 10000] mm²,
         heights [0, 200] mm, steps [0, 10000] mm).
+    steep_still_mm: a steep top counts toward a pending contact only where the contact's point
+        stood within this many mm of it in the frame before (per frame interval since: a
+        finger standing on the surface stays put, while the specks that a hand's raised edges
+        leave at ToF range, and a neighbour's tip on its way down, come and go or move on); a
+        contact that starts on a steep top starts with no evidence. 0 (default): off; range
+        [0, 1000] mm (docs/accuracy.md, session 60).
     pending_gap_frames: a contact not yet down whose point is missing for up to this many
         frames is kept, its evidence multiplied by pending_decay each such frame, instead of
         being dropped (a tip at range flickers at the band's edge, a fast drag at range is seen
@@ -398,6 +404,7 @@ class TrackingConfig:
     steep_hand_mm: float = 8.0
     steep_step_min_mm: float = 75.0
     steep_step_max_mm: float = 88.0
+    steep_still_mm: float = 0.0
     lift_core_mm: float = 15.0
     lift_noise_k: float = 0.0
     doubt_frames: int = 45
@@ -468,6 +475,7 @@ class TrackingConfig:
         _range("tracking.steep_step_min_mm", self.steep_step_min_mm, 0.0, 10000.0)
         _range("tracking.steep_step_max_mm", self.steep_step_max_mm, self.steep_step_min_mm,
                10000.0)
+        _range("tracking.steep_still_mm", self.steep_still_mm, 0.0, 1000.0)
         _range("tracking.lift_core_mm", self.lift_core_mm, 0.0, 200.0)
         _range("tracking.lift_noise_k", self.lift_noise_k, 0.0, 100.0)
         _range("tracking.doubt_frames", self.doubt_frames, 0, 100000)

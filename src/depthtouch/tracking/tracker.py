@@ -185,6 +185,9 @@ class Tracker:
         slide_mm = (cfg.pending_step_max_mm * self._rate.gate
                     if self.scale_mm_per_px is not None else 0.0)
         slide_ath_mm = cfg.pending_step_attach_mm
+        # how far a pending contact's point may move in a frame and still count a steep top
+        # (0: any)
+        steep_still = cfg.steep_still_mm if self.scale_mm_per_px is not None else 0.0
         # the heights behind the points, only when the rule is on (an unknown height counts as
         # raised: the rule applies)
         ath: list[float] = (
@@ -259,6 +262,10 @@ class Tracker:
                         and math.hypot(px - ox, py - oy) > slide_mm * m):
                     # a pending contact arriving sliding under a raised hand: no evidence now
                     w_j = 0.0
+                if (not t.active and steep_still > 0 and steep[j]
+                        and math.hypot(px - ox, py - oy) > steep_still * m):
+                    # a steep top where the contact's point did not stand the frame before
+                    w_j = 0.0
                 # smoothed velocity, from rest: a noisy touch point (or, just after touch-down, a
                 # neighbour's tip arriving in the region) must not throw the prediction off
                 t.vel = (0.5 * vx + 0.5 * ((px - ox) / m), 0.5 * vy + 0.5 * ((py - oy) / m))
@@ -318,8 +325,10 @@ class Tracker:
         for j in range(n_p):
             if j in used or not ok_new[j]:
                 continue
+            # (a contact starting on a steep top has not yet stood anywhere: no evidence)
+            w_new = 0.0 if steep_still > 0 and steep[j] else weight[j]
             t = Track(xy[j], pos[j], float(h[j]), int(area[j]), hand_at_border=border[j],
-                      evidence=weight[j], offset_px=offset[j], still_at=pos[j], still_n=1)
+                      evidence=w_new, offset_px=offset[j], still_at=pos[j], still_n=1)
             if lift_mm > 0:
                 t.core = CoreHistory(keep_noise=noise_k > 0)
                 t.core.update(core[j])
