@@ -367,12 +367,25 @@ def _analysis(rows: list) -> list[str]:
         '- Session 58 (an AMD EPYC VM, OpenCV 5.1.0; measured on a new machine the session after): '
         "two options in the surface adapter's stripe pass, off by default (`adapt.drift_hold_mm`, "
         "`adapt.drift_hold_after_s`): one more bit in the exclusion map it already builds, and "
-        "when on, a small list of the last cycle's touches. `make bench` (the table above) read "
+        "when on, a small list of the last cycle's touches. `make bench` (that session's table) read "
         '640x480 with 5 touches 1.183 ms (p95 1.637) and 0.401 ms without touches, over the 1.0 '
         "ms target, with OpenCV's reference pass at 0.859 ms. `benchmarks/paired.py --against "
         "038c37b` (the session's starting code, 8 rounds of 60 frames in one process): 1.126 ms "
         '(this code) against 1.163 ms, per-round ratio B/A median 1.012 (0.879-1.327), median + '
         'surface update 0.357 against 0.361 ms: no cost the rounds can tell.',
+        '- Session 60 (the same AMD EPYC VM, OpenCV 5.1.0): one more comparison per matched '
+        "pending contact in the tracker (`tracking.steep_still_mm`, off by default). `make bench` "
+        '(the table above) read 640x480 with 5 touches 0.787 ms (p95 2.405) and 0.346 ms without '
+        "touches, under the 1.0 ms target, with OpenCV's reference pass at 0.683 ms against "
+        "0.859 ms in session 59's run of nearly the same code (1.183 ms): the machine that hour. "
+        "`benchmarks/paired.py --against 61cbc38` (session 59's last code, 20 rounds of 60 "
+        'frames in one process): 0.825 ms (this code) against 0.822 ms, per-round ratio B/A '
+        'median 0.996 (0.751-1.334). On this machine the 5-touch frame lies on either side of the '
+        "target depending on the hour. Timed inside the pipeline in one process (300 frames, "
+        "three rounds, an hour when the whole frame took about 1.0 ms): the 3x3 median 79-91 us, "
+        "levelling 92-107 us, the surface follow 127-157 us, band and regions 98-117 us, the hand "
+        "map 47-59 us, the fingertip kernel 224-271 us (105 us on one frame's input repeated), "
+        "the tracker 117-148 us, filter and events 81-107 us: no part holds the excess alone.",
         "- The fingertip kernel reads small windows of six per-pixel surface arrays that the "
         "full-frame passes (median, band) push out of the cache each frame: the same call takes "
         "about half the time on warm data. Memory, not arithmetic, is most of what is left.",
