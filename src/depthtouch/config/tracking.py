@@ -244,11 +244,11 @@ class TrackingConfig:
         default suite. steep_evidence 0 turns it off (ranges [0, 1], areas [0, 10000] mm²,
         heights [0, 200] mm, steps [0, 10000] mm).
     steep_still_mm: a steep top counts toward a pending contact only where the contact's point
-        stood within this many mm of it in the frame before (per frame interval since: a
-        finger standing on the surface stays put, while the specks that a hand's raised edges
-        leave at ToF range, and a neighbour's tip on its way down, come and go or move on); a
-        contact that starts on a steep top starts with no evidence. 0 (default): off; range
-        [0, 1000] mm (docs/accuracy.md, session 60).
+        stood within this many mm of it the frame before (this many per frame interval since
+        the contact was last seen): a finger standing on the surface stays put, while the
+        specks that a hand's raised edges leave at ToF range, and a neighbour's tip on its way
+        down, come and go or move on. A contact that starts on a steep top starts with no
+        evidence. 0 (default): off; range [0, 1000] mm (docs/accuracy.md, session 60).
     pending_gap_frames: a contact not yet down whose point is missing for up to this many
         frames is kept, its evidence multiplied by pending_decay each such frame, instead of
         being dropped (a tip at range flickers at the band's edge, a fast drag at range is seen
