@@ -726,11 +726,12 @@ def test_a_region_with_level_heights_behind_it_gives_no_evidence(spread_mm: floa
 
 
 def _steep_tip(h: float = 15.0, area: int = 100, hand_mm: float = 4.0,
-               step_mm: float = 83.0) -> TouchPoints:
-    """The top of a finger standing almost upright (scale 1 mm/px): a compact region a finger's
-    diameter above the surface, the hand right behind it, level heights behind it."""
-    return TouchPoints(np.array([[100.0, 100.0]]), np.array([h]), np.array([area]),
-                       np.array([[100.0, 100.0 + hand_mm]]), None, np.array([10]),
+               step_mm: float = 83.0, x: float = 100.0) -> TouchPoints:
+    """The top of a finger standing almost upright (scale 1 mm/px) at image x: a compact
+    region a finger's diameter above the surface, the hand right behind it, level heights
+    behind it."""
+    return TouchPoints(np.array([[x, 100.0]]), np.array([h]), np.array([area]),
+                       np.array([[x, 100.0 + hand_mm]]), None, np.array([10]),
                        np.array([step_mm]), np.array([5.0]))
 
 
@@ -754,13 +755,6 @@ def test_what_is_not_a_steep_finger_never_goes_down(kw: dict[str, float]) -> Non
     assert not any(run(tr, [_steep_tip(**kw)] * 12))
 
 
-def _steep_tip_at(x: float) -> TouchPoints:
-    """:func:`_steep_tip` moved to image x (its hand 4 px behind it)."""
-    return TouchPoints(np.array([[x, 100.0]]), np.array([15.0]), np.array([100]),
-                       np.array([[x, 104.0]]), None, np.array([10]), np.array([83.0]),
-                       np.array([5.0]))
-
-
 def test_a_steep_top_counts_only_where_the_contact_stood_the_frame_before() -> None:
     """steep_still_mm: a steep finger standing still goes down a frame later than without it
     (its first frame counts nothing), and steep tops that jump 12 mm from frame to frame
@@ -770,15 +764,10 @@ def test_a_steep_top_counts_only_where_the_contact_stood_the_frame_before() -> N
                                              [_steep_tip()] * 9)]
     assert states[:6] == [[]] * 6
     assert states[6] == ["down"]
-    jumps = [_steep_tip_at(100.0 + 12.0 * (k % 2)) for k in range(16)]
+    jumps = [_steep_tip(x=100.0 + 12.0 * (k % 2)) for k in range(16)]
     assert not any(run(Tracker(on, scale_mm_per_px=1.0), jumps))
     off = Tracker(TrackingConfig(), scale_mm_per_px=1.0)
     assert "down" in [s for f in run(off, jumps) for _, s in f]
-
-
-def test_steep_still_mm_is_checked() -> None:
-    with pytest.raises(ValueError, match="steep_still_mm"):
-        TrackingConfig(steep_still_mm=-1.0).validate()
 
 
 def test_a_points_offset_moves_what_is_reported_not_what_is_tracked() -> None:
