@@ -338,7 +338,7 @@ def test_stripe_median_is_numbas_median() -> None:
     ties, continuous ones, two clusters split at the middle, one outlier, odd and even counts."""
     import numba
 
-    from depthtouch.surface.adapt import median_f32
+    from depthtouch.surface.medians import median_f32
 
     @numba.njit
     def reference(a: np.ndarray) -> float:

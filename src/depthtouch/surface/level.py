@@ -48,7 +48,7 @@ import math
 import numba
 import numpy as np
 
-from .adapt import median_f32
+from .medians import median_f32
 
 #: the grid: every STEP_PX / 2-th pixel of every 2 STEP_PX-th row (as many pixels as every 8th
 #: of every 8th row, from half as many rows: fewer cache lines read)
