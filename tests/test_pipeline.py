@@ -1,6 +1,7 @@
 """End to end on synthetic recordings with known touches: found touches, position error, ids."""
 
 import json
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -132,3 +133,58 @@ def test_bad_frames_are_skipped_not_raised():
     assert p.process(Frame(d[-1].astype(np.float32), 9.1, 100, 0.001, K_640)).status == "skipped"
     assert p.stats.skipped_frames == 2 and set(p.stats.skip_reasons) == {"size", "dtype"}
     assert p.process(Frame(d[-1], 9.2, 101, 0.001, K_640)).events  # and it goes on
+
+
+def test_frames_without_intrinsics_take_the_assumed_field_of_view(recording, caplog):
+    """K is optional in a recording: without it the sensor assumes surface.assumed_hfov_deg,
+    says so once, and with the camera's own field of view finds the touches K gives."""
+    path, _ = recording
+    with NpzSource(path) as src:
+        frames = list(src.frames())
+    hfov = 2 * np.degrees(np.arctan(320 / K_640[0, 0]))  # the recording's own camera
+    cfg = PipelineConfig()
+    cfg = replace(cfg, surface=replace(cfg.surface, assumed_hfov_deg=float(hfov)))
+
+    def events(pipe, drop_k):
+        out = []
+        for f in frames:
+            out += pipe.process(replace(f, K=None) if drop_k else f).events
+        return [(e.id, e.state, e.x, e.y) for e in out]
+
+    with_k = events(Pipeline(cfg), drop_k=False)
+    caplog.clear()
+    with caplog.at_level("WARNING", logger="depthtouch.pipeline"):
+        without = events(Pipeline(cfg), drop_k=True)
+    said = [r.getMessage() for r in caplog.records if "no intrinsics" in r.getMessage()]
+    assert len(said) == 1 and "surface.assumed_hfov_deg" in said[0]
+    assert with_k and [e[:2] for e in without] == [e[:2] for e in with_k]
+    np.testing.assert_allclose([e[2:] for e in without], [e[2:] for e in with_k], atol=1e-6)
+    # another field of view: sizes in mm change, the touches are still found
+    wide = Pipeline(replace(cfg, surface=replace(cfg.surface, assumed_hfov_deg=75.0)))
+    assert {e[0] for e in events(wide, drop_k=True) if e[1] == "down"}
+
+
+def test_assumed_intrinsics_are_a_centred_pinhole():
+    from depthtouch.sources.base import assumed_K
+
+    K = assumed_K((640, 480), 90.0)
+    np.testing.assert_allclose(K, [[320.0, 0, 319.5], [0, 320.0, 239.5], [0, 0, 1]])
+    assert assumed_K((512, 424), 70.0)[0, 0] == pytest.approx(256 / np.tan(np.radians(35)))
+
+
+def test_a_saved_surface_without_intrinsics_takes_the_assumed_ones(recording):
+    path, _ = recording
+    with NpzSource(path) as src:
+        frames = list(src.frames())
+    learner = Pipeline()
+    n = 0
+    while learner.surface.learning:
+        learner.process(frames[n])
+        n += 1
+    model = replace(learner.surface.model(), K=None)  # as saved from a recording without K
+    pipe = Pipeline(surface=model)
+    downs = [e for f in frames[n:] for e in pipe.process(replace(f, K=None)).events
+             if e.state == "down"]
+    assert len(downs) == 3  # the two drags and the tap, as with K (the 25 mm hover is not one)
+    assert pipe.surface.mm_per_px == pytest.approx(
+        learner.surface.mm_per_px * 600 / (320 / np.tan(np.radians(35))), rel=1e-3)

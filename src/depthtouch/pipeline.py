@@ -23,6 +23,7 @@ import numpy as np
 
 from .config import PipelineConfig
 from .errors import SourceError, SurfaceError
+from .sources.base import assumed_K
 from .surface.gate import LearningGate
 from .surface.model import SurfaceModel
 from .surface.surface import Surface
@@ -109,6 +110,9 @@ class Pipeline:
         self.calibration = calibration
         self.stats = PipelineStats()
         self._warned: set[str] = set()
+        self._assumed_K: dict[tuple[int, int], np.ndarray] = {}  # per resolution, frames without K
+        if surface is not None and surface.K is None:
+            surface = replace(surface, K=self._assumed(surface.resolution_wh))
         self.surface = Surface(self.config, surface, learn_frames=surface_frames, gate=gate)
         self._filter: TouchFilter = (make_filter(self.config.filter) if path_filter is None
                                      else path_filter)
@@ -137,6 +141,8 @@ class Pipeline:
 
     def set_surface(self, surface: SurfaceModel) -> None:
         """Use this surface from the next frame on (active touches continue)."""
+        if surface.K is None:
+            surface = replace(surface, K=self._assumed(surface.resolution_wh))
         self.surface.use(surface)
         self._scale_for(self.surface)
 
@@ -168,6 +174,8 @@ class Pipeline:
     def process(self, frame: Frame) -> FrameResult:
         """What the sensor makes of one frame (see the module doc)."""
         self.stats.frames += 1
+        if frame.K is None:
+            frame = self._with_assumed_K(frame)
         surface = self.surface
         if surface.learning:
             self.stats.learning_frames += 1
@@ -223,6 +231,27 @@ class Pipeline:
             "total": (t4 - t0) * 1e3,
         }
         return self._result(frame, events, "ok", points, timing)
+
+    def _with_assumed_K(self, frame: Frame) -> Frame:
+        """The frame with intrinsics for ``surface.assumed_hfov_deg`` (it carries none)."""
+        return replace(frame, K=self._assumed(frame.resolution_wh))
+
+    def _assumed(self, wh: tuple[int, int]) -> np.ndarray:
+        """Intrinsics for ``surface.assumed_hfov_deg`` at this resolution, for frames or a saved
+        surface without their own (every size in mm needs the pixel size); said once."""
+        K = self._assumed_K.get(wh)
+        if K is None:
+            hfov = self.config.surface.assumed_hfov_deg
+            K = self._assumed_K[wh] = assumed_K(wh, hfov)
+            if "K" not in self._warned:
+                self._warned.add("K")
+                log.warning(
+                    "the frames carry no intrinsics (K): sizes in mm assume a %g deg horizontal "
+                    "field of view (surface.assumed_hfov_deg), and are off where the camera's "
+                    "differs; give the recording its K (the .npz's K, meta.json's \"K\") or set "
+                    "surface.assumed_hfov_deg to the camera's (docs/config.md)", hfov,
+                )
+        return K
 
     def _recent_change(self, frame: Frame, points: TouchPoints) -> np.ndarray | None:
         """The recent change around the points the enclosure test asks about (its share and

@@ -35,6 +35,11 @@ class SurfaceConfig:
     level_engage_mm: levelling engages once the frame's shift as a whole reaches this, and
         lets go 3 s after it last did (a slow drift stays under it: the surface adapter's, as
         without levelling; 0 = always engaged; default 1.0, range [0, 20]).
+    assumed_hfov_deg: the horizontal field of view taken for frames that carry no intrinsics
+        (K is optional in a recording): every size in mm (a fingertip's area, the gates, the
+        attachment's length) comes from the pixel size K gives, so without one the sensor
+        assumes this, says so once, and reads sizes off by the ratio of the tangents of the
+        half angles where the camera's own differs (default 70, a Kinect v2's; range [20, 150]).
     """
 
     learn_s: float = 1.5
@@ -45,6 +50,7 @@ class SurfaceConfig:
     relearn_s: float = 0.5
     level_limit_mm: float = 15.0
     level_engage_mm: float = 1.0
+    assumed_hfov_deg: float = 70.0
 
     def validate(self) -> None:
         _range("surface.learn_s", self.learn_s, 0.0, 60.0, lo_open=True)
@@ -59,6 +65,7 @@ class SurfaceConfig:
         _range("surface.noise_floor_mm", self.noise_floor_mm, 0.0, 50.0)
         _range("surface.level_limit_mm", self.level_limit_mm, 0.0, 100.0)
         _range("surface.level_engage_mm", self.level_engage_mm, 0.0, 20.0)
+        _range("surface.assumed_hfov_deg", self.assumed_hfov_deg, 20.0, 150.0)
 
 
 @dataclass(frozen=True)

@@ -6,6 +6,7 @@ frame, and is a context manager so that files and devices are closed on every pa
 
 from __future__ import annotations
 
+import math
 from collections.abc import Iterator
 from types import TracebackType
 from typing import Protocol, runtime_checkable
@@ -119,6 +120,14 @@ def validate_K(value: object, where: str) -> np.ndarray | None:
             "give [[fx,0,cx],[0,fy,cy],[0,0,1]]"
         )
     return K
+
+
+def assumed_K(resolution_wh: tuple[int, int], hfov_deg: float) -> np.ndarray:
+    """Pinhole intrinsics for a camera whose own are unknown: square pixels, the principal
+    point at the image centre, a horizontal field of view of ``hfov_deg`` degrees."""
+    w, h = resolution_wh
+    f = (w / 2.0) / math.tan(math.radians(hfov_deg) / 2.0)
+    return np.array([[f, 0.0, (w - 1) / 2.0], [0.0, f, (h - 1) / 2.0], [0.0, 0.0, 1.0]])
 
 
 def validate_timestamps(ts: object, n: int, where: str) -> np.ndarray:
