@@ -93,6 +93,10 @@ def _add_eval(sub: argparse._SubParsersAction) -> None:
                    help="with --suite: every frame moves as a whole, as a depth camera's does: "
                         "a wobble of MM/2 and jumps of 1-2 MM held 0.5-3 s (0-10; "
                         "docs/simulator.md)")
+    p.add_argument("--empty-s", type=float, metavar="S",
+                   help="with --suite: every recording's first frames taken away so that "
+                        "something comes into view S s after its start (0.2-10; the scenes "
+                        "wait 1.5 s and more, a recording promises 1 s: docs/formats.md)")
     p.add_argument("--json", action="store_true", help="print the metrics as JSON")
     p.add_argument("--space", choices=("depth", "screen"), default="depth",
                    help="score --events by x, y (depth) or sx, sy (screen: fused cameras of "
@@ -130,14 +134,15 @@ def _add_eval(sub: argparse._SubParsersAction) -> None:
                                      config=cfg, workers=a.workers,
                                      cache=cache_root() if a.cache else None, as_json=a.json,
                                      ci=a.ci or 1000,
-                                     progress=None if a.json else _print_case)
+                                     progress=None if a.json else _print_case,
+                                     empty_s=a.empty_s)
             return print_halves(a.suite, a.half, subset=a.subset, config=cfg,
                                 workers=a.workers, cache=cache_root() if a.cache else None,
                                 as_json=a.json, progress=None if a.json else _print_case,
                                 fps=a.fps, resolution_scale=a.resolution_scale,
                                 noise_scale=a.noise_scale, by=a.by or "group", ci=a.ci,
                                 body=a.body, drop_rate=a.drop_rate,
-                                breathing_mm=a.breathing_mm)
+                                breathing_mm=a.breathing_mm, empty_s=a.empty_s)
         if a.ci or a.against:
             flag = "--ci" if a.ci else "--against"
             raise ConfigError(f"{flag} needs --suite NAME --half H (intervals over a half's "
@@ -158,6 +163,9 @@ def _add_eval(sub: argparse._SubParsersAction) -> None:
         if a.breathing_mm is not None and not a.suite:
             raise ConfigError("--breathing-mm needs --suite NAME (a recording has its own "
                               "noise); render one with `depthtouch sim SCENE --breathing-mm MM`")
+        if a.empty_s is not None and not a.suite:
+            raise ConfigError("--empty-s needs --suite NAME (a recording starts as it starts); "
+                              "cut a recording's first frames yourself")
         if a.gestures:
             from .evaluation.gestures import gestures_output
 
@@ -172,7 +180,7 @@ def _add_eval(sub: argparse._SubParsersAction) -> None:
                 cache=cache_root() if a.cache else None,
                 progress=None if a.json else _print_case, fps=a.fps,
                 resolution_scale=a.resolution_scale, noise_scale=a.noise_scale, body=a.body,
-                drop_rate=a.drop_rate, breathing_mm=a.breathing_mm,
+                drop_rate=a.drop_rate, breathing_mm=a.breathing_mm, empty_s=a.empty_s,
             )
         else:
             metrics = eval_recording_command(a.recording, a.truth, events_path=a.events,

@@ -275,6 +275,10 @@ def test_report_rows_pool_by_another_attribute_or_none() -> None:
      "breathing 12.0 mm is out of range"),
     (["eval", "--suite", "hard", "--half", "tune", "--against", "b.toml", "--breathing-mm", "2"],
      "--breathing-mm"),
+    (["eval", "--empty-s", "1", "x.npz"], "--empty-s needs --suite NAME"),
+    (["eval", "--suite", "hard", "--empty-s", "0.1", "--half", "tune"],
+     "empty start 0.1 s is out of range"),
+    (["eval", "--suite", "hard", "--empty-s", "11"], "empty start 11.0 s is out of range"),
     # bootstrap intervals and comparisons (evaluation/bootstrap.py)
     (["eval", "--suite", "hard", "--half", "tune", "--ci", "5"], "--ci 5 is out of range"),
     (["eval", "--suite", "hard", "--ci", "1000"], "--ci needs --suite NAME --half H"),

@@ -165,3 +165,32 @@ def test_no_noise_warning_when_tl_was_raised_on_purpose(caplog):
     cfg = dataclasses.replace(cfg, regions=dataclasses.replace(cfg.regions, tl_floor_mm=16.0))
     Surface(cfg, _noisy_model(1.0, 0.0))
     assert [r for r in caplog.records if r.name == "depthtouch.surface.surface"] == []
+
+
+def test_a_hand_coming_in_after_the_first_second_is_left_out_of_the_learning():
+    """A recording promises an empty surface for its first second only: what moves in the
+    learning frames after it is left out, pixel by pixel; what moved before it is learned."""
+    rng = np.random.default_rng(5)
+
+    def learn(hand_from: int, learn_min_s: float):
+        learner = SurfaceLearner(SurfaceConfig(learn_s=1.5, learn_min_s=learn_min_s))
+        for i in range(60):
+            d = (1000 + rng.normal(0, 2, (120, 160))).astype(np.uint16)
+            if i >= hand_from:
+                d[40:100, 60:110] = 800  # a hand 200 mm above the surface
+            model = learner.update(Frame(d, i / 30.0, i, 0.001, None))
+            if model is not None:
+                return model, learner.masked
+
+    hand = (slice(40, 100), slice(60, 110))
+    model, masked = learn(20, 1.5)  # (0.67 s of the 1.5 s: the median's majority is the hand)
+    assert float(np.median(model.depth_mm[hand])) == 800 and masked == 0
+    model, masked = learn(36, 1.0)  # in after 1.2 s: left out
+    assert masked == 60 * 50 * (46 - 36)
+    assert abs(float(np.median(model.depth_mm[hand])) - 1000) < 1
+    assert float(np.median(model.sigma_mm[hand])) < 3  # the noise of the table, not the hand's
+    model, masked = learn(36, 1.5)  # taken as it is: the median holds (a minority of frames),
+    assert abs(float(np.median(model.depth_mm[hand])) - 1000) < 3
+    assert float(np.median(model.sigma_mm[hand])) > 50  # but the noise there is the hand's
+    model, masked = learn(99, 1.0)  # the noise alone: nothing left out
+    assert masked == 0

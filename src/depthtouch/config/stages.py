@@ -21,6 +21,11 @@ class SurfaceConfig:
 
     learn_s: seconds of empty-surface frames to learn from (default 1.5, range (0, 60]).
     learn_frames: number of frames instead of seconds when set (range [2, 10000]).
+    learn_min_s: the learning frames after the first this many seconds are read pixel by pixel
+        against those before: a pixel that moved there (a hand coming in) is left out of the
+        learning in that frame. A recording promises an empty surface for its first second
+        only (docs/formats.md), and learn_s is longer (default 1.0, range [0, 60]; at learn_s
+        or more: every frame is taken as it is).
     statistic: per-pixel surface depth: "mean", "mode" (the paper's two), or "median".
     min_valid_fraction: a pixel is usable when at least this share of its learning samples is
         valid (non-zero) (default 0.5, range (0, 1]).
@@ -44,6 +49,7 @@ class SurfaceConfig:
 
     learn_s: float = 1.5
     learn_frames: int | None = None
+    learn_min_s: float = 1.0
     statistic: str = "median"
     min_valid_fraction: float = 0.5
     noise_floor_mm: float = 0.5
@@ -55,6 +61,7 @@ class SurfaceConfig:
     def validate(self) -> None:
         _range("surface.learn_s", self.learn_s, 0.0, 60.0, lo_open=True)
         _range("surface.relearn_s", self.relearn_s, 0.0, 60.0, lo_open=True)
+        _range("surface.learn_min_s", self.learn_min_s, 0.0, 60.0)
         if self.learn_frames is not None:
             _range("surface.learn_frames", self.learn_frames, 2, 10000)
         if self.statistic not in ("mean", "mode", "median"):

@@ -73,6 +73,9 @@ class SuiteCase:
     body: arms go on past the shoulder into a body that leaves the view, see ``render_scene``.
     drop_rate: frames the camera never delivers (0: none), see ``render_scene``.
     breathing_mm: the whole frame moves at once by about this (0: none), see ``render_scene``.
+    empty_s: the rendered recording's first frames taken away so that its surface lies empty
+    this long (s) before anything comes into view (0: as rendered; not a render setting: the
+    cache keeps the recording as rendered), see :mod:`depthtouch.evaluation.emptystart`.
     """
 
     scene: str
@@ -92,6 +95,7 @@ class SuiteCase:
     body: bool = False
     drop_rate: float = 0.0
     breathing_mm: float = 0.0
+    empty_s: float = 0.0
 
     @property
     def label(self) -> str:
@@ -106,8 +110,14 @@ class SuiteCase:
         body = "/body" if self.body else ""
         drop = "" if self.drop_rate == 0.0 else f"/drop{self.drop_rate:g}"
         breath = "" if self.breathing_mm == 0.0 else f"/breathe{self.breathing_mm:g}"
+        empty = "" if self.empty_s == 0.0 else f"/empty{self.empty_s:g}"
         return (f"{self.scene}/{self.camera}{res}/{self.distance_m:g}m{surf}{tilt}{hand}"
-                f"{pitch}{noise}{motion}{skin}{body}{drop}{breath}/s{self.seed}")
+                f"{pitch}{noise}{motion}{skin}{body}{drop}{breath}{empty}/s{self.seed}")
+
+    @property
+    def rendered(self) -> SuiteCase:
+        """The case as rendered and cached (without what is applied after: ``empty_s``)."""
+        return self if self.empty_s == 0.0 else dataclasses.replace(self, empty_s=0.0)
 
     def render_kwargs(self) -> dict[str, Any]:
         kw: dict[str, Any] = {"camera": self.camera, "distance_m": self.distance_m,
@@ -212,6 +222,16 @@ class Suite:
         from ..sim.breathing import check_breathing
 
         return self._with(breathing_mm=check_breathing(scale_mm))
+
+    def with_empty_start(self, empty_s: float | None) -> Suite:
+        """The same cases with their empty start shortened to ``empty_s`` seconds (``empty_s``,
+        [0.2, 10] s, see :mod:`depthtouch.evaluation.emptystart`; None: this suite). Halves stay
+        the same."""
+        if empty_s is None:
+            return self
+        from .emptystart import check_empty_s
+
+        return self._with(empty_s=check_empty_s(empty_s))
 
     def _with(self, **changes: Any) -> Suite:
         """Every case with these render settings changed; tags and order kept."""
@@ -382,6 +402,7 @@ def _sim_digest() -> str:
 def recording_paths(case: SuiteCase, cache: Path | None = None) -> tuple[Path, Path]:
     """Where the cached recording and truth of ``case`` live (they may not exist yet)."""
     root = (cache or cache_root()) / "suite"
+    case = case.rendered  # a shortened empty start reads the recording as rendered
     stem = f"{case.label.replace('/', '_')}-{case.cache_key()}"
     return root / f"{stem}.npz", root / f"{stem}.truth.json"
 

@@ -7,10 +7,12 @@ The suite itself (its file, cases and cached recordings) is :mod:`depthtouch.eva
 
 from __future__ import annotations
 
+import json
 import os
 from collections.abc import Callable, Mapping, Sequence
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -18,6 +20,7 @@ from ..config import PipelineConfig
 from ..errors import ConfigError
 from ..sources.base import ArraySource, DepthSource
 from ..types import FrameResult, TouchEvent
+from .emptystart import shorten
 from .metrics import GATE_MM, EvalResult, FrameNotes, Truth, evaluate, read_truth
 from .notes import contact_pixels
 from .suite import SuiteCase, ensure_recording, load_suite
@@ -101,24 +104,44 @@ def evaluate_case(
     Without ``cache`` the case is rendered in memory; with it, the recording is read from the
     cache, or rendered and written there first.
     """
-    if cache is not None:
+    if cache is not None and case.empty_s == 0.0:
         rec_path, truth_path = ensure_recording(case, cache)
         return [evaluate_recording(rec_path, truth_path, cfg, gate_mm=gate_mm, label=case.label)
                 for cfg in configs]
-    from ..sim import render_scene
     from .metrics import truth_from_dict
 
-    rec = render_scene(case.scene, **case.render_kwargs())
-    truth = truth_from_dict(rec.truth, case.label)
+    src_args, doc = _recording(case, cache)
+    truth = truth_from_dict(doc, case.label)
     out = []
     for cfg in configs:
         notes: dict[int, FrameNotes] = {}
-        events, timing = run_source(ArraySource.of_recording(rec, case.label), cfg, notes,
+        events, timing = run_source(ArraySource(*src_args, name=case.label), cfg, notes,
                                     contact_pixels(truth))
         settle = (cfg or PipelineConfig()).tracking.down_frames
         out.append(evaluate(truth, events, gate_mm=gate_mm, settle_frames=settle,
                             timing_ms=timing, label=case.label, point_notes=notes))
     return out
+
+
+def _recording(case: SuiteCase, cache: Path | None
+               ) -> tuple[tuple[np.ndarray, np.ndarray, float, np.ndarray | None], dict[str, Any]]:
+    """A case's (depth, timestamps, depth scale, K) and truth document: rendered in memory, or
+    read from the cache (rendered there first), its empty start shortened (``empty_s``)."""
+    if cache is not None:
+        rec_path, truth_path = ensure_recording(case, cache)
+        with np.load(rec_path) as z:
+            arrays = (z["depth"], z["timestamps"], float(z["depth_scale"]),
+                      z["K"] if "K" in z.files else None)
+        doc = json.loads(truth_path.read_text(encoding="utf-8"))
+    else:
+        from ..sim import render_scene
+
+        rec = render_scene(case.scene, **case.render_kwargs())
+        arrays, doc = (rec.depth, rec.timestamps_s, rec.depth_scale_m, rec.K), rec.truth
+    if case.empty_s > 0.0:
+        depth, ts, doc = shorten(arrays[0], arrays[1], doc, case.empty_s)
+        arrays = (depth, ts, arrays[2], arrays[3])
+    return arrays, doc
 
 
 _Job = tuple[SuiteCase, Sequence[PipelineConfig | None], float, Path | None]
@@ -266,6 +289,7 @@ def eval_suite_command(
     body: bool = False,
     drop_rate: float | None = None,
     breathing_mm: float | None = None,
+    empty_s: float | None = None,
 ) -> dict[str, Metrics]:
     """``depthtouch eval --suite NAME``: metrics pooled by ``by``, plus ``all`` at the end.
 
@@ -276,10 +300,12 @@ def eval_suite_command(
     body: every arm goes on into a body that leaves the view (``render_scene(body=True)``).
     drop_rate: frames the camera never delivers (``render_scene(drop_rate=)``; None: none).
     breathing_mm: frames that move as a whole (``render_scene(breathing_mm=)``; None: none).
+    empty_s: every recording's empty start shortened to this (s; None: as rendered).
     """
     check_group_key(by)  # before any case is rendered
     s = (load_suite(suite).at_fps(fps).at_resolution(resolution_scale).at_noise(noise_scale)
-         .with_body(body).with_drops(drop_rate).with_breathing(breathing_mm))
+         .with_body(body).with_drops(drop_rate).with_breathing(breathing_mm)
+         .with_empty_start(empty_s))
     cases = s.select(subset)
     results = run_cases(cases, config, gate_mm=s.gate_mm, workers=workers or default_workers(),
                         cache=cache, progress=progress)

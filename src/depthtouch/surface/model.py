@@ -276,11 +276,46 @@ def height_factor(surface: SurfaceModel, normals: np.ndarray | None = None) -> n
     return np.where(ok, np.clip(f, 0.2, 2.0), 1.0).astype(np.float32)
 
 
+#: a learning frame's pixel after ``learn_min_s`` moved when it lies farther than this from its
+#: mean over the frames before ``learn_min_s``, and than MOTION_SIGMAS of their standard
+#: deviation (mm)
+MOTION_MM = 20.0
+MOTION_SIGMAS = 5.0
+
+
+def mask_moved(depth: np.ndarray, sure: int, to_mm: float) -> tuple[np.ndarray, int]:
+    """The learning frames (uint16 (N, H, W)) with what moved after the first ``sure`` frames
+    taken out (set to 0, a missing sample), and how many samples that was (pure; ``depth``
+    itself when none). A pixel moved in a later frame when it lies farther than MOTION_MM, and
+    than MOTION_SIGMAS of its standard deviation, from its mean over the ``sure`` frames; a
+    pixel with fewer than 2 valid samples there keeps its later ones."""
+    n = depth.shape[0]
+    if sure < 2 or sure >= n:
+        return depth, 0
+    first = depth[:sure].astype(np.float32)
+    ok = first > 0
+    cnt = ok.sum(axis=0)
+    mean = first.sum(axis=0) / np.maximum(cnt, 1)
+    var = (np.where(ok, first - mean, 0.0) ** 2).sum(axis=0) / np.maximum(cnt - 1, 1)
+    lim = np.maximum(np.float32(MOTION_MM / to_mm), MOTION_SIGMAS * np.sqrt(var))
+    later = depth[sure:]
+    moved = (later > 0) & (cnt >= 2) & (np.abs(later.astype(np.float32) - mean) > lim)
+    k = int(moved.sum())
+    if k == 0:
+        return depth, 0
+    out = depth.copy()
+    out[sure:][moved] = 0
+    return out, k
+
+
 class SurfaceLearner:
     """Collects the first frames of a stream and learns the surface from them.
 
     ``update(frame)`` returns the model once enough frames (``learn_frames`` or ``learn_s``
-    seconds, measured on the frame timestamps) have been seen, else None.
+    seconds, measured on the frame timestamps) have been seen, else None. A recording promises
+    an empty surface for its first second only (docs/formats.md): what moves in the frames
+    after ``learn_min_s`` (a hand coming in) is left out of the learning, pixel by pixel
+    (:func:`mask_moved`; ``masked`` counts those samples).
     """
 
     def __init__(self, config: SurfaceConfig | None = None, n_frames: int | None = None) -> None:
@@ -292,6 +327,8 @@ class SurfaceLearner:
         self._frames: list[np.ndarray] = []
         self._t0: float | None = None
         self._last: Frame | None = None
+        self._times: list[float] = []
+        self.masked = 0
 
     @property
     def progress(self) -> float:
@@ -311,13 +348,21 @@ class SurfaceLearner:
         if self._t0 is None:
             self._t0 = frame.timestamp_s
         self._frames.append(frame.depth)
+        self._times.append(frame.timestamp_s)
         self._last = frame
         done = (len(self._frames) >= self.n_frames if self.n_frames is not None
                 else frame.timestamp_s - self._t0 >= self.config.learn_s - 1e-9
                 and len(self._frames) >= 2)
         if not done:
             return None
+        return self._learn(frame)
+
+    def _learn(self, frame: Frame) -> SurfaceModel:
+        assert self._t0 is not None
         stack = np.stack(self._frames)
+        if self.config.learn_min_s < self.config.learn_s:
+            sure = sum(t - self._t0 < self.config.learn_min_s - 1e-9 for t in self._times)
+            stack, self.masked = mask_moved(stack, sure, frame.depth_scale_m * 1000.0)
         model = learn_surface(stack, frame.depth_scale_m, frame.K, self.config)
-        self._frames = []
+        self._frames, self._times = [], []
         return model

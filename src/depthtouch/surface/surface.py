@@ -216,6 +216,10 @@ class Surface:
         model = self._learner.update(frame)
         if model is None:
             return False
+        if self._learner.masked:
+            log.info("frame %d: something moved in the surface's learning frames after the first "
+                     "%g s; %d samples of it were left out (surface.learn_min_s)", frame.index,
+                     self.config.surface.learn_min_s, self._learner.masked)
         self.use(model)
         return True
 
