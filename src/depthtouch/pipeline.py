@@ -47,13 +47,14 @@ def _warm_up() -> None:
     if _warm:
         return
     from . import firstrun, runs
-    from .surface import adapt
+    from .surface import adapt, model
     from .touch import handmap, parallax, points, recent, regions, tipkernel
     from .tracking import eurokernel
 
     # a cold numba cache (the first run after installing) takes ~20 s: firstrun says so
     firstrun.warm_up((tipkernel.warm_up, handmap.warm_up, regions.warm_up, adapt.warm_up,
-                      eurokernel.warm_up, recent.warm_up, parallax.warm_up, points.warm_up),
+                      eurokernel.warm_up, recent.warm_up, parallax.warm_up, points.warm_up,
+                      model.warm_up),
                      kernels=(tipkernel._frame_points, runs.parts_of_runs, eurokernel.euro_step))
     _warm = True
 

@@ -194,3 +194,39 @@ def test_a_hand_coming_in_after_the_first_second_is_left_out_of_the_learning():
     assert float(np.median(model.sigma_mm[hand])) > 50  # but the noise there is the hand's
     model, masked = learn(99, 1.0)  # the noise alone: nothing left out
     assert masked == 0
+
+
+def _mask_moved_oracle(depth, sure, to_mm):
+    """The array version of model.mask_moved (the compiled pass's oracle)."""
+    from depthtouch.surface.model import MOTION_MM, MOTION_SIGMAS
+
+    first = depth[:sure].astype(np.float64)
+    ok = first > 0
+    cnt = ok.sum(axis=0)
+    mean = first.sum(axis=0) / np.maximum(cnt, 1)
+    var = (np.where(ok, first - mean, 0.0) ** 2).sum(axis=0) / np.maximum(cnt - 1, 1)
+    lim = np.maximum(MOTION_MM / to_mm, MOTION_SIGMAS * np.sqrt(var))
+    later = depth[sure:]
+    moved = (later > 0) & (cnt >= 2) & (np.abs(later.astype(np.float64) - mean) > lim)
+    out = depth.copy()
+    out[sure:][moved] = 0
+    return out, int(moved.sum())
+
+
+@pytest.mark.parametrize("scale_m", [0.001, 0.0001])
+def test_moved_samples_match_the_array_version(scale_m):
+    from depthtouch.surface.model import mask_moved
+
+    rng = np.random.default_rng(11)
+    to_mm = scale_m * 1000.0
+    mm = 1000 + rng.normal(0, 4, (40, 30, 50))
+    mm[rng.random(mm.shape) < 0.05] = 0  # missing samples
+    mm[:, :3, :3] = 0  # never valid
+    mm[30:, 10:20, 10:30] = 930  # a hand 70 mm up after the first 30 frames
+    mm[33:, 0, :] += rng.normal(0, 30, (7, 50))  # a noisy row: some beyond 20 mm, some not
+    depth = np.where(mm > 0, np.round(mm / to_mm), 0).astype(np.uint16)
+    out, k = mask_moved(depth, 30, to_mm)
+    want, k_want = _mask_moved_oracle(depth, 30, to_mm)
+    assert k == k_want > 10 * 20 * 9 and np.array_equal(out, want)
+    out40, k40 = mask_moved(depth, 40, to_mm)  # every frame sure: nothing to read
+    assert out40 is depth and k40 == 0

@@ -16,6 +16,7 @@ import zlib
 from dataclasses import dataclass
 from pathlib import Path
 
+import numba
 import numpy as np
 from numpy.lib.npyio import NpzFile
 
@@ -288,24 +289,60 @@ def mask_moved(depth: np.ndarray, sure: int, to_mm: float) -> tuple[np.ndarray, 
     taken out (set to 0, a missing sample), and how many samples that was (pure; ``depth``
     itself when none). A pixel moved in a later frame when it lies farther than MOTION_MM, and
     than MOTION_SIGMAS of its standard deviation, from its mean over the ``sure`` frames; a
-    pixel with fewer than 2 valid samples there keeps its later ones."""
+    pixel with fewer than 2 valid samples there keeps its later ones. (One compiled pass per
+    pixel; ``tests/surface/test_surface.py`` keeps the array version as its oracle.)"""
     n = depth.shape[0]
     if sure < 2 or sure >= n:
         return depth, 0
-    first = depth[:sure].astype(np.float32)
-    ok = first > 0
-    cnt = ok.sum(axis=0)
-    mean = first.sum(axis=0) / np.maximum(cnt, 1)
-    var = (np.where(ok, first - mean, 0.0) ** 2).sum(axis=0) / np.maximum(cnt - 1, 1)
-    lim = np.maximum(np.float32(MOTION_MM / to_mm), MOTION_SIGMAS * np.sqrt(var))
-    later = depth[sure:]
-    moved = (later > 0) & (cnt >= 2) & (np.abs(later.astype(np.float32) - mean) > lim)
+    flat = depth.reshape(n, -1)
+    moved = _moved_samples(flat, int(sure), float(MOTION_MM / to_mm), float(MOTION_SIGMAS))
     k = int(moved.sum())
     if k == 0:
         return depth, 0
-    out = depth.copy()
-    out[sure:][moved] = 0
-    return out, k
+    out = flat.copy()
+    out[moved] = 0
+    return out.reshape(depth.shape), k
+
+
+@numba.njit(cache=True, nogil=True)
+def _moved_samples(flat: np.ndarray, sure: int, lim_units: float, k_sigma: float) -> np.ndarray:
+    """(N, P) bool: the samples of frames ``sure`` on that moved (see :func:`mask_moved`)."""
+    n, p = flat.shape
+    s1 = np.zeros(p, np.float64)
+    s2 = np.zeros(p, np.float64)
+    cnt = np.zeros(p, np.int64)
+    for i in range(sure):
+        row = flat[i]
+        for j in range(p):
+            v = row[j]
+            if v > 0:
+                s1[j] += v
+                s2[j] += np.float64(v) * v
+                cnt[j] += 1
+    lim = np.empty(p, np.float64)
+    mean = np.empty(p, np.float64)
+    for j in range(p):
+        c = cnt[j]
+        if c < 2:
+            lim[j] = np.inf
+            mean[j] = 0.0
+            continue
+        m = s1[j] / c
+        var = max((s2[j] - c * m * m) / (c - 1), 0.0)
+        mean[j] = m
+        lim[j] = max(lim_units, k_sigma * np.sqrt(var))
+    out = np.zeros((n, p), np.bool_)
+    for i in range(sure, n):
+        row, o = flat[i], out[i]
+        for j in range(p):
+            v = row[j]
+            o[j] = v > 0 and abs(v - mean[j]) > lim[j]
+    return out
+
+
+def warm_up() -> None:
+    """Compile (or load from cache) the learning's kernel (see :func:`tipkernel.warm_up`)."""
+    mask_moved(np.ones((3, 2, 2), np.uint16), 2, 1.0)
 
 
 class SurfaceLearner:
