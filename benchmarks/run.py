@@ -386,6 +386,17 @@ def _analysis(rows: list) -> list[str]:
         "levelling 92-107 us, the surface follow 127-157 us, band and regions 98-117 us, the hand "
         "map 47-59 us, the fingertip kernel 224-271 us (105 us on one frame's input repeated), "
         "the tracker 117-148 us, filter and events 81-107 us: no part holds the excess alone.",
+        '- Session 61 (the same AMD EPYC VM, OpenCV 5.1.0): on the per-frame path one test of a '
+        "frame's intrinsics (frames without K get assumed ones, `surface.assumed_hfov_deg`); the "
+        'learning leaves out what moved after its first second (`surface.learn_min_s`; one '
+        'compiled pass at the end of the learning, 44 ms at 848x480 for 46 frames, the learning '
+        'itself about 0.4 s). `make bench` (the table above) read 640x480 with 5 touches 1.380 ms'
+        " (p95 2.008) and 0.439 ms without touches, over the 1.0 ms target, with OpenCV's "
+        "reference pass at 0.919 ms against 0.683 ms in session 60's run (0.787 ms): every stage "
+        'slower together, tracking (plain Python) 0.159 against 0.089 ms. `benchmarks/paired.py '
+        "--against 874bb79` (session 60's last code, 20 rounds of 60 frames in one process): "
+        '1.014 ms (this code) against 1.017 ms, per-round ratio B/A median 1.001 (0.705-1.484): '
+        "the machine that hour and the process's luck, not the code.",
         "- The fingertip kernel reads small windows of six per-pixel surface arrays that the "
         "full-frame passes (median, band) push out of the cache each frame: the same call takes "
         "about half the time on warm data. Memory, not arithmetic, is most of what is left.",
