@@ -23,7 +23,7 @@ from pathlib import Path
 from typing import Any
 
 from depthtouch.config import PipelineConfig
-from depthtouch.evaluation.halves import _case_tags, figures, select_half
+from depthtouch.evaluation.halves import case_tags, figures, select_half
 from depthtouch.evaluation.metrics import EvalResult, evaluate
 from depthtouch.evaluation.suite import SuiteCase, cache_root, ensure_recording, load_suite
 from depthtouch.evaluation.suiterun import run_source
@@ -85,7 +85,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     jobs = [(c, variants, cache) for c in cases]
     with ProcessPoolExecutor(max_workers=a.workers) as ex:
         per_case = list(ex.map(_case, jobs))
-    far, drift, _ = _case_tags(suite, cases)
+    far, drift, _ = case_tags(suite, cases)
     cols = [figures([rs[k] for rs in per_case], far, drift) for k in range(len(variants))]
     names = ["K as recorded", *(f"no K, {v:g} deg" for v in variants[1:])]
     print(f"{a.suite}, {a.half} half, {len(cases)} recordings")

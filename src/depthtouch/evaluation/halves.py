@@ -130,7 +130,7 @@ def figures(results: Sequence[EvalResult], far: Sequence[bool],
     }
 
 
-def _case_tags(suite: Suite, cases: Sequence[SuiteCase]
+def case_tags(suite: Suite, cases: Sequence[SuiteCase]
                ) -> tuple[list[bool], list[bool], list[str]]:
     """Per case: whether it counts apart in recall (far), whether it drifts, and its half."""
     far = [FAR_TAG in suite.tags.get(c, frozenset()) for c in cases]
@@ -158,7 +158,7 @@ def halves_report(suite: Suite, cases: Sequence[SuiteCase],
     check_group_key(by)
     if ci:
         check_resamples(ci)
-    far, drift, halves = _case_tags(suite, cases)
+    far, drift, halves = case_tags(suite, cases)
 
     def block(keep: Callable[[int], bool]) -> dict[str, Any]:
         out: dict[str, Any] = {}
@@ -230,7 +230,7 @@ def compare_report(suite: Suite, cases: Sequence[SuiteCase], results_a: Sequence
     {half: {measure: {"a", "b", "diff", "ci"}}}}`` (:func:`bootstrap.paired_intervals` over
     the half's recordings, ``ci`` resamples)."""
     check_resamples(ci)
-    far, drift, halves = _case_tags(suite, cases)
+    far, drift, halves = case_tags(suite, cases)
     out: dict[str, Any] = {}
     for h in HALVES:
         idx = [i for i in range(len(cases)) if halves[i] == h]
