@@ -115,8 +115,10 @@ def evaluate_case(
     out = []
     for cfg in configs:
         notes: dict[int, FrameNotes] = {}
-        events, timing = run_source(ArraySource(*src_args, name=case.label), cfg, notes,
-                                    contact_pixels(truth))
+        depth, ts, scale, K = src_args
+        fps = float(1.0 / np.median(np.diff(ts))) if ts.shape[0] > 1 else None
+        events, timing = run_source(ArraySource(depth, ts, scale, K, fps=fps, name=case.label),
+                                    cfg, notes, contact_pixels(truth))
         settle = (cfg or PipelineConfig()).tracking.down_frames
         out.append(evaluate(truth, events, gate_mm=gate_mm, settle_frames=settle,
                             timing_ms=timing, label=case.label, point_notes=notes))
