@@ -112,8 +112,8 @@ class Pipeline:
         self.stats = PipelineStats()
         self._warned: set[str] = set()
         self._assumed_K: dict[tuple[int, int], np.ndarray] = {}  # per resolution, frames without K
-        if surface is not None and surface.K is None:
-            surface = replace(surface, K=self._assumed(surface.resolution_wh))
+        if surface is not None:
+            surface = self._with_K(surface)
         self.surface = Surface(self.config, surface, learn_frames=surface_frames, gate=gate)
         self._filter: TouchFilter = (make_filter(self.config.filter) if path_filter is None
                                      else path_filter)
@@ -142,9 +142,7 @@ class Pipeline:
 
     def set_surface(self, surface: SurfaceModel) -> None:
         """Use this surface from the next frame on (active touches continue)."""
-        if surface.K is None:
-            surface = replace(surface, K=self._assumed(surface.resolution_wh))
-        self.surface.use(surface)
+        self.surface.use(self._with_K(surface))
         self._scale_for(self.surface)
 
     def set_calibration(self, calibration: ScreenMapping | None) -> None:
@@ -176,7 +174,7 @@ class Pipeline:
         """What the sensor makes of one frame (see the module doc)."""
         self.stats.frames += 1
         if frame.K is None:
-            frame = self._with_assumed_K(frame)
+            frame = replace(frame, K=self._assumed(frame.resolution_wh))
         surface = self.surface
         if surface.learning:
             self.stats.learning_frames += 1
@@ -233,9 +231,10 @@ class Pipeline:
         }
         return self._result(frame, events, "ok", points, timing)
 
-    def _with_assumed_K(self, frame: Frame) -> Frame:
-        """The frame with intrinsics for ``surface.assumed_hfov_deg`` (it carries none)."""
-        return replace(frame, K=self._assumed(frame.resolution_wh))
+    def _with_K(self, surface: SurfaceModel) -> SurfaceModel:
+        """A saved surface, with intrinsics for ``surface.assumed_hfov_deg`` when it has none."""
+        return surface if surface.K is not None else replace(
+            surface, K=self._assumed(surface.resolution_wh))
 
     def _assumed(self, wh: tuple[int, int]) -> np.ndarray:
         """Intrinsics for ``surface.assumed_hfov_deg`` at this resolution, for frames or a saved

@@ -110,40 +110,38 @@ def evaluate_case(
                 for cfg in configs]
     from .metrics import truth_from_dict
 
-    src_args, doc = _recording(case, cache)
+    source, doc = _recording(case, cache)
     truth = truth_from_dict(doc, case.label)
     out = []
     for cfg in configs:
         notes: dict[int, FrameNotes] = {}
-        depth, ts, scale, K = src_args
-        fps = float(1.0 / np.median(np.diff(ts))) if ts.shape[0] > 1 else None
-        events, timing = run_source(ArraySource(depth, ts, scale, K, fps=fps, name=case.label),
-                                    cfg, notes, contact_pixels(truth))
+        events, timing = run_source(source, cfg, notes, contact_pixels(truth))
         settle = (cfg or PipelineConfig()).tracking.down_frames
         out.append(evaluate(truth, events, gate_mm=gate_mm, settle_frames=settle,
                             timing_ms=timing, label=case.label, point_notes=notes))
     return out
 
 
-def _recording(case: SuiteCase, cache: Path | None
-               ) -> tuple[tuple[np.ndarray, np.ndarray, float, np.ndarray | None], dict[str, Any]]:
-    """A case's (depth, timestamps, depth scale, K) and truth document: rendered in memory, or
-    read from the cache (rendered there first), its empty start shortened (``empty_s``)."""
+def _recording(case: SuiteCase, cache: Path | None) -> tuple[ArraySource, dict[str, Any]]:
+    """A case's frames (a source that can be read again, for each config) and truth document:
+    rendered in memory, or read from the cache (rendered there first), its empty start
+    shortened (``empty_s``)."""
     if cache is not None:
         rec_path, truth_path = ensure_recording(case, cache)
         with np.load(rec_path) as z:
-            arrays = (z["depth"], z["timestamps"], float(z["depth_scale"]),
-                      z["K"] if "K" in z.files else None)
+            depth, ts, scale = z["depth"], z["timestamps"], float(z["depth_scale"])
+            K = z["K"] if "K" in z.files else None
         doc = json.loads(truth_path.read_text(encoding="utf-8"))
+        fps = None
     else:
         from ..sim import render_scene
 
         rec = render_scene(case.scene, **case.render_kwargs())
-        arrays, doc = (rec.depth, rec.timestamps_s, rec.depth_scale_m, rec.K), rec.truth
+        depth, ts, scale, K, doc, fps = (rec.depth, rec.timestamps_s, rec.depth_scale_m, rec.K,
+                                         rec.truth, rec.fps)
     if case.empty_s > 0.0:
-        depth, ts, doc = shorten(arrays[0], arrays[1], doc, case.empty_s)
-        arrays = (depth, ts, arrays[2], arrays[3])
-    return arrays, doc
+        depth, ts, doc = shorten(depth, ts, doc, case.empty_s)
+    return ArraySource(depth, ts, scale, K, fps=fps, name=case.label), doc
 
 
 _Job = tuple[SuiteCase, Sequence[PipelineConfig | None], float, Path | None]
