@@ -390,13 +390,15 @@ def _analysis(rows: list) -> list[str]:
         "frame's intrinsics (frames without K get assumed ones, `surface.assumed_hfov_deg`); the "
         'learning leaves out what moved after its first second (`surface.learn_min_s`; one '
         'compiled pass at the end of the learning, 44 ms at 848x480 for 46 frames, the learning '
-        'itself about 0.4 s). `make bench` (the table above) read 640x480 with 5 touches 1.380 ms'
+        'itself about 0.4 s). `make bench` (a first run) read 640x480 with 5 touches 1.380 ms'
         " (p95 2.008) and 0.439 ms without touches, over the 1.0 ms target, with OpenCV's "
         "reference pass at 0.919 ms against 0.683 ms in session 60's run (0.787 ms): every stage "
         'slower together, tracking (plain Python) 0.159 against 0.089 ms. `benchmarks/paired.py '
         "--against 874bb79` (session 60's last code, 20 rounds of 60 frames in one process): "
         '1.014 ms (this code) against 1.017 ms, per-round ratio B/A median 1.001 (0.705-1.484): '
-        "the machine that hour and the process's luck, not the code.",
+        "the machine that hour and the process's luck, not the code. After the review (the same "
+        "arithmetic on the per-frame path), the table above: 1.216 ms (p95 1.623) and 0.445 ms "
+        "without touches, OpenCV's reference pass 0.957 ms.",
         "- The fingertip kernel reads small windows of six per-pixel surface arrays that the "
         "full-frame passes (median, band) push out of the cache each frame: the same call takes "
         "about half the time on warm data. Memory, not arithmetic, is most of what is left.",
