@@ -97,6 +97,10 @@ def _add_eval(sub: argparse._SubParsersAction) -> None:
                    help="with --suite: every recording's first frames taken away so that "
                         "something comes into view S s after its start (0.2-10; the scenes "
                         "wait 1.5 s and more, a recording promises 1 s: docs/formats.md)")
+    p.add_argument("--edge-mm", type=float, metavar="MM",
+                   help="with --suite: the surface ends inside the view, on the side the "
+                        "user's arm comes from, and beyond its edge lies a floor MM farther "
+                        "(100-1500; docs/simulator.md)")
     p.add_argument("--json", action="store_true", help="print the metrics as JSON")
     p.add_argument("--space", choices=("depth", "screen"), default="depth",
                    help="score --events by x, y (depth) or sx, sy (screen: fused cameras of "
@@ -135,14 +139,15 @@ def _add_eval(sub: argparse._SubParsersAction) -> None:
                                      cache=cache_root() if a.cache else None, as_json=a.json,
                                      ci=a.ci or 1000,
                                      progress=None if a.json else _print_case,
-                                     empty_s=a.empty_s)
+                                     empty_s=a.empty_s, edge_mm=a.edge_mm)
             return print_halves(a.suite, a.half, subset=a.subset, config=cfg,
                                 workers=a.workers, cache=cache_root() if a.cache else None,
                                 as_json=a.json, progress=None if a.json else _print_case,
                                 fps=a.fps, resolution_scale=a.resolution_scale,
                                 noise_scale=a.noise_scale, by=a.by or "group", ci=a.ci,
                                 body=a.body, drop_rate=a.drop_rate,
-                                breathing_mm=a.breathing_mm, empty_s=a.empty_s)
+                                breathing_mm=a.breathing_mm, empty_s=a.empty_s,
+                                edge_mm=a.edge_mm)
         if a.ci or a.against:
             flag = "--ci" if a.ci else "--against"
             raise ConfigError(f"{flag} needs --suite NAME --half H (intervals over a half's "
@@ -166,6 +171,9 @@ def _add_eval(sub: argparse._SubParsersAction) -> None:
         if a.empty_s is not None and not a.suite:
             raise ConfigError("--empty-s needs --suite NAME (a recording starts as it starts); "
                               "cut a recording's first frames yourself")
+        if a.edge_mm is not None and not a.suite:
+            raise ConfigError("--edge-mm needs --suite NAME (a recording shows the surface it "
+                              "shows); render one with `depthtouch sim SCENE --edge-mm MM`")
         if a.gestures:
             from .evaluation.gestures import gestures_output
 
@@ -181,6 +189,7 @@ def _add_eval(sub: argparse._SubParsersAction) -> None:
                 progress=None if a.json else _print_case, fps=a.fps,
                 resolution_scale=a.resolution_scale, noise_scale=a.noise_scale, body=a.body,
                 drop_rate=a.drop_rate, breathing_mm=a.breathing_mm, empty_s=a.empty_s,
+                edge_mm=a.edge_mm,
             )
         else:
             metrics = eval_recording_command(a.recording, a.truth, events_path=a.events,
@@ -355,6 +364,10 @@ def _add_sim(sub: argparse._SubParsersAction) -> None:
                    help="the whole frame moves at once [0, 10]: a wobble of MM/2 (0.5 s) and "
                         "jumps of 1-2 MM held 0.5-3 s, as a depth camera's frame does; a "
                         "disparity camera's pixels by (z / distance)^2 of it")
+    p.add_argument("--edge-mm", type=float, default=0.0, metavar="MM",
+                   help="the surface ends inside the view (a table's edge, across the way the "
+                        "first arm comes in) and beyond it lies a floor MM farther: 0 (none) or "
+                        "[100, 1500]")
     p.add_argument("--no-noise", action="store_true", help="exact geometry, no sensor noise")
     p.add_argument("--views", type=int, metavar="N",
                    help="N cameras (2-3) 0.8 m apart: --out is a folder of viewK.npz, "
@@ -383,6 +396,8 @@ def _add_sim(sub: argparse._SubParsersAction) -> None:
             raise ConfigError("--drop-rate applies to one camera; leave it out with --views")
         if a.views is not None and a.breathing_mm != 0.0:
             raise ConfigError("--breathing-mm applies to one camera; leave it out with --views")
+        if a.views is not None and a.edge_mm != 0.0:
+            raise ConfigError("--edge-mm applies to one camera; leave it out with --views")
         if a.views is not None:
             from .sim.multiview import default_poses, render_views, write_views
 
@@ -399,7 +414,7 @@ def _add_sim(sub: argparse._SubParsersAction) -> None:
             surface=a.surface, seed=a.seed, fps=a.fps, noise=not a.no_noise, hand=a.hand,
             resolution_scale=a.resolution_scale, pitch_deg=a.pitch, noise_scale=a.noise_scale,
             motion_ms=a.motion_ms, skin_noise=a.skin_noise, body=a.body,
-            drop_rate=a.drop_rate, breathing_mm=a.breathing_mm,
+            drop_rate=a.drop_rate, breathing_mm=a.breathing_mm, edge_mm=a.edge_mm,
         )
         write_recording(rec, a.out, a.truth)
         if not a.quiet:

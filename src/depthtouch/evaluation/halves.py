@@ -203,6 +203,7 @@ def eval_halves_command(
     drop_rate: float | None = None,
     breathing_mm: float | None = None,
     empty_s: float | None = None,
+    edge_mm: float | None = None,
 ) -> dict[str, Any]:
     """``depthtouch eval --suite NAME --half tune|held-out|all``: :func:`halves_report`, its
     rows pooled ``by``, with ``ci`` bootstrap resamples for the intervals (0: none). ``fps``:
@@ -211,13 +212,14 @@ def eval_halves_command(
     this; ``body``: every arm goes on into a body that leaves the view; ``drop_rate``: frames
     the camera never delivers (``render_scene(drop_rate=)``); ``breathing_mm``: frames that
     move as a whole (``render_scene(breathing_mm=)``); ``empty_s``: every recording's empty
-    start shortened to this (s, :mod:`.emptystart`)."""
+    start shortened to this (s, :mod:`.emptystart`); ``edge_mm``: the surface ends inside the
+    view with this drop beyond its edge (``render_scene(edge_mm=)``)."""
     check_group_key(by)  # before any case is rendered
     if ci:
         check_resamples(ci)
     s = (load_suite(suite).at_fps(fps).at_resolution(resolution_scale).at_noise(noise_scale)
          .with_body(body).with_drops(drop_rate).with_breathing(breathing_mm)
-         .with_empty_start(empty_s))
+         .with_empty_start(empty_s).with_edge(edge_mm))
     cases = _half_cases(s, subset, half)
     results = run_cases(cases, config, gate_mm=s.gate_mm, workers=workers or default_workers(),
                         cache=cache, progress=progress)
@@ -253,12 +255,14 @@ def eval_compare_command(
     progress: Callable[[SuiteCase, EvalResult], None] | None = None,
     ci: int = 1000,
     empty_s: float | None = None,
+    edge_mm: float | None = None,
 ) -> dict[str, Any]:
     """``depthtouch eval --suite NAME --half H --against B.toml``: each case rendered once and
     run with both configurations, then :func:`compare_report` (``empty_s``: every recording's
-    empty start shortened to this, s)."""
+    empty start shortened to this, s; ``edge_mm``: the surface ends inside the view with this
+    drop beyond its edge, mm)."""
     check_resamples(ci)  # before any case is rendered
-    s = load_suite(suite).with_empty_start(empty_s)
+    s = load_suite(suite).with_empty_start(empty_s).with_edge(edge_mm)
     cases = _half_cases(s, subset, half)
     res_a, res_b = run_grid(cases, [config, config_b], gate_mm=s.gate_mm,
                             workers=workers or default_workers(), cache=cache, progress=progress)
@@ -395,7 +399,8 @@ def print_halves(suite: str | Path, half: str, *, subset: str | None = None,
                  fps: float | None = None, resolution_scale: float | None = None,
                  noise_scale: float | None = None, by: str = "group", ci: int = 0,
                  body: bool = False, drop_rate: float | None = None,
-                 breathing_mm: float | None = None, empty_s: float | None = None) -> int:
+                 breathing_mm: float | None = None, empty_s: float | None = None,
+                 edge_mm: float | None = None) -> int:
     """The CLI's ``eval --suite NAME --half H [--by B] [--ci N]``: print the tables (or JSON);
     returns 0."""
     import json
@@ -405,7 +410,8 @@ def print_halves(suite: str | Path, half: str, *, subset: str | None = None,
                                  workers=workers, cache=cache, progress=progress, fps=fps,
                                  resolution_scale=resolution_scale, noise_scale=noise_scale,
                                  by=by, ci=ci, body=body, drop_rate=drop_rate,
-                                 breathing_mm=breathing_mm, empty_s=empty_s)
+                                 breathing_mm=breathing_mm, empty_s=empty_s,
+                                 edge_mm=edge_mm)
     if as_json:
         print(json.dumps(report, indent=1))
         return 0
@@ -445,7 +451,7 @@ def print_compare(suite: str | Path, half: str, config_b: PipelineConfig, *,
                   workers: int | None = None, cache: Path | None = None,
                   as_json: bool = False, ci: int = 1000,
                   progress: Callable[[SuiteCase, EvalResult], None] | None = None,
-                  empty_s: float | None = None) -> int:
+                  empty_s: float | None = None, edge_mm: float | None = None) -> int:
     """The CLI's ``eval --suite NAME --half H --against B.toml``: print the table (or JSON);
     returns 0."""
     import json
@@ -453,7 +459,7 @@ def print_compare(suite: str | Path, half: str, config_b: PipelineConfig, *,
 
     report = eval_compare_command(suite, config_b, half=half, subset=subset, config=config,
                                   workers=workers, cache=cache, progress=progress, ci=ci,
-                                  empty_s=empty_s)
+                                  empty_s=empty_s, edge_mm=edge_mm)
     if as_json:
         print(json.dumps(report, indent=1))
         return 0

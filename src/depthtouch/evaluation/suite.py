@@ -73,6 +73,8 @@ class SuiteCase:
     body: arms go on past the shoulder into a body that leaves the view, see ``render_scene``.
     drop_rate: frames the camera never delivers (0: none), see ``render_scene``.
     breathing_mm: the whole frame moves at once by about this (0: none), see ``render_scene``.
+    edge_mm: the surface ends inside the view, and beyond its edge lies this much farther (0:
+    the surface fills the view), see ``render_scene``.
     empty_s: the rendered recording's first frames taken away so that its surface lies empty
     this long (s) before anything comes into view (0: as rendered; not a render setting: the
     cache keeps the recording as rendered), see :mod:`depthtouch.evaluation.emptystart`.
@@ -96,6 +98,7 @@ class SuiteCase:
     drop_rate: float = 0.0
     breathing_mm: float = 0.0
     empty_s: float = 0.0
+    edge_mm: float = 0.0
 
     @property
     def label(self) -> str:
@@ -111,8 +114,9 @@ class SuiteCase:
         drop = "" if self.drop_rate == 0.0 else f"/drop{self.drop_rate:g}"
         breath = "" if self.breathing_mm == 0.0 else f"/breathe{self.breathing_mm:g}"
         empty = "" if self.empty_s == 0.0 else f"/empty{self.empty_s:g}"
+        edge = "" if self.edge_mm == 0.0 else f"/edge{self.edge_mm:g}"
         return (f"{self.scene}/{self.camera}{res}/{self.distance_m:g}m{surf}{tilt}{hand}"
-                f"{pitch}{noise}{motion}{skin}{body}{drop}{breath}{empty}/s{self.seed}")
+                f"{pitch}{noise}{motion}{skin}{body}{drop}{breath}{edge}{empty}/s{self.seed}")
 
     @property
     def rendered(self) -> SuiteCase:
@@ -141,6 +145,8 @@ class SuiteCase:
             kw["drop_rate"] = self.drop_rate
         if self.breathing_mm != 0.0:  # (absent at 0: the cache keys stay as they were)
             kw["breathing_mm"] = self.breathing_mm
+        if self.edge_mm != 0.0:  # (absent at 0: the cache keys stay as they were)
+            kw["edge_mm"] = self.edge_mm
         return kw
 
     def cache_key(self) -> str:
@@ -222,6 +228,16 @@ class Suite:
         from ..sim.breathing import check_breathing
 
         return self._with(breathing_mm=check_breathing(scale_mm))
+
+    def with_edge(self, drop_mm: float | None) -> Suite:
+        """The same cases on a surface that ends inside the view (``edge_mm``, see
+        :func:`depthtouch.sim.render_scene`, 0 or [100, 1500] mm; None: this suite). Halves
+        stay the same."""
+        if drop_mm is None:
+            return self
+        from ..sim.edge import check_edge
+
+        return self._with(edge_mm=check_edge(drop_mm))
 
     def with_empty_start(self, empty_s: float | None) -> Suite:
         """The same cases with their empty start shortened to ``empty_s`` seconds (``empty_s``,
@@ -312,7 +328,7 @@ def suite_from_dict(data: dict[str, Any], where: str = "suite") -> Suite:
         gw = f"{where}: group {gname}"
         known = {"name", "scenes", "cameras", "distances_m", "surfaces", "tilts_deg", "seeds",
                  "fps", "tags", "hands", "pitches_deg", "motion_ms", "skin_noise", "body",
-                 "drop_rate", "breathing_mm"}
+                 "drop_rate", "breathing_mm", "edge_mm"}
         unknown = sorted(set(g) - known)
         if unknown:
             raise ConfigError(
@@ -336,6 +352,14 @@ def suite_from_dict(data: dict[str, Any], where: str = "suite") -> Suite:
         skin = _numbers([g.get("skin_noise", 1.0)], "skin_noise", gw, 1.0, 4.0)[0]
         drop = _numbers([g.get("drop_rate", 0.0)], "drop_rate", gw, 0.0, 0.2)[0]
         breath = _numbers([g.get("breathing_mm", 0.0)], "breathing_mm", gw, 0.0, 10.0)[0]
+        edge = g.get("edge_mm", 0.0)
+        if edge != 0.0:
+            from ..sim.edge import check_edge
+
+            try:
+                edge = check_edge(edge)
+            except ConfigError as e:
+                raise ConfigError(f"{gw}: {e}") from None
         body = g.get("body", False)
         if not isinstance(body, bool):
             raise ConfigError(f"{gw}: body = {body!r} must be true or false")
@@ -351,7 +375,7 @@ def suite_from_dict(data: dict[str, Any], where: str = "suite") -> Suite:
                             c = SuiteCase(s, cam, d, surf, tilt, int(seed), fps, gname, hand,
                                           pitch_deg=pitch, motion_ms=motion,
                                           skin_noise=skin, body=body, drop_rate=drop,
-                                          breathing_mm=breath)
+                                          breathing_mm=breath, edge_mm=float(edge))
                             key = dataclasses.replace(c, group="")
                             cases.setdefault(key, (c, set()))[1].update(tags)
     ordered = [c for c, _ in cases.values()]

@@ -290,6 +290,7 @@ def eval_suite_command(
     drop_rate: float | None = None,
     breathing_mm: float | None = None,
     empty_s: float | None = None,
+    edge_mm: float | None = None,
 ) -> dict[str, Metrics]:
     """``depthtouch eval --suite NAME``: metrics pooled by ``by``, plus ``all`` at the end.
 
@@ -301,11 +302,13 @@ def eval_suite_command(
     drop_rate: frames the camera never delivers (``render_scene(drop_rate=)``; None: none).
     breathing_mm: frames that move as a whole (``render_scene(breathing_mm=)``; None: none).
     empty_s: every recording's empty start shortened to this (s; None: as rendered).
+    edge_mm: the surface ends inside the view, this far above what lies beyond its edge
+    (``render_scene(edge_mm=)``; None: the surface fills the view).
     """
     check_group_key(by)  # before any case is rendered
     s = (load_suite(suite).at_fps(fps).at_resolution(resolution_scale).at_noise(noise_scale)
          .with_body(body).with_drops(drop_rate).with_breathing(breathing_mm)
-         .with_empty_start(empty_s))
+         .with_empty_start(empty_s).with_edge(edge_mm))
     cases = s.select(subset)
     results = run_cases(cases, config, gate_mm=s.gate_mm, workers=workers or default_workers(),
                         cache=cache, progress=progress)

@@ -222,6 +222,7 @@ class NoiseModel:
         # column index of every pixel, for the occlusion test
         self._cols = np.broadcast_to(np.arange(w, dtype=np.float32), self.shape)
         self._static_z: np.ndarray | None = None
+        self._edge_box: tuple[int, int, int, int] | None = None
         # drawn last, and only for profiles that vary, so the other profiles' streams stay as
         # they were (the default suite is a regression reference)
         lo, hi = profile.noise_scale_range
@@ -247,8 +248,11 @@ class NoiseModel:
         eps += self._second[o2:o2 + n] * b
         return eps.reshape(self.shape)
 
-    def set_static(self, z_mm: np.ndarray) -> None:
-        """Precompute what depends only on the static scene (the surface depth map)."""
+    def set_static(self, z_mm: np.ndarray, live_edges: bool = False) -> None:
+        """Precompute what depends only on the static scene (the surface depth map).
+
+        live_edges: the static scene's own depth edges (a table's edge, :mod:`.edge`) get
+        their artefacts drawn again every frame, as a hand's do, instead of once."""
         z = np.asarray(z_mm, dtype=np.float32)
         self._static_z = z
         sigma, add, bad = self._maps(z, self._amplitude(z, None))
@@ -258,7 +262,19 @@ class NoiseModel:
         p = self.profile
         near = ~bad & ((z - 6 * sigma < p.min_range_mm) | (z + 6 * sigma > p.max_range_mm))
         self._near_limit = np.flatnonzero(near)
-        missing = bad | self._edge_effects(z, sigma, None)[0]
+        edge_missing = self._edge_effects(z, sigma, None)[0]
+        self._edge_box = None
+        if live_edges:
+            zf = np.where(z > 0, z, np.float32(p.max_range_mm))
+            kernel = np.ones((3, 3), np.uint8)
+            jump = (cv2.dilate(zf, kernel) - cv2.erode(zf, kernel)) > \
+                (np.float32(20.0) + np.float32(6.0) * sigma)
+            ys, xs = np.nonzero(jump)
+            if ys.size:
+                self._edge_box = (int(xs.min()), int(ys.min()), int(xs.max()) + 1,
+                                  int(ys.max()) + 1)
+                edge_missing = np.zeros(z.shape, bool)
+        missing = bad | edge_missing
         if self.profile.baseline_mm > 0:
             r = self._cols - np.float32(self.profile.fx_px * self.profile.baseline_mm) / \
                 np.where(z > 0, z, np.float32(np.inf))
@@ -320,6 +336,8 @@ class NoiseModel:
         noisy += self._static_bias
         noisy += z
         missing = self._static_missing.copy()
+        if self._edge_box is not None:  # the static scene's edges, drawn again every frame
+            self._apply_box(z, eps, noisy, missing, self._edge_box)
         if box is not None and box[2] > box[0] and box[3] > box[1]:
             self._apply_box(z, eps, noisy, missing, box)
         if p.disparity_step_px > 0:

@@ -21,6 +21,7 @@ from .artefacts import exposure_mix
 from .breathing import breathe, check_breathing
 from .cameras import NoiseModel, get_profile, scaled_profile
 from .drops import check_drop_rate, drop_frames
+from .edge import check_edge, edge_depth_map, edge_doc, place_edge
 from .geometry import Primitive, Rays, Surface, make_surface, render_primitives, rotation_xyz
 from .hand import FINGERS, HAND_STYLES, build_hand
 from .scenes import HOVER_MAX_MM, SceneContext, Script, build_script
@@ -117,6 +118,7 @@ def render_scene(
     body: bool = False,
     drop_rate: float = 0.0,
     breathing_mm: float = 0.0,
+    edge_mm: float = 0.0,
 ) -> SimRecording:
     """Render ``scene`` (see :data:`~depthtouch.sim.SCENES`) as seen by ``camera``.
 
@@ -188,6 +190,7 @@ def render_scene(
         raise ConfigError(f"body {body!r} must be true or false")
     drop_rate = check_drop_rate(drop_rate)
     breathing_mm = check_breathing(breathing_mm)
+    edge_mm = check_edge(edge_mm)
     if hand not in HAND_STYLES:
         raise ConfigError(f"unknown hand {hand!r}; use one of {', '.join(HAND_STYLES)}")
     rays = Rays(profile.K, profile.resolution_wh)
@@ -196,6 +199,7 @@ def render_scene(
                             for s in np.random.SeedSequence(int(seed)).spawn(2))
     script = build_script(scene, SceneContext(world_surface, rays, scene_rng, hand, pitch_deg,
                                                 body))
+    edge = place_edge(script, world_surface, edge_mm, int(seed)) if edge_mm > 0 else None
     n = max(int(round(script.duration_s * fps)), 1)
     w, h = profile.resolution_wh
     depth = np.empty((n, h, w), np.uint16)
@@ -214,9 +218,11 @@ def render_scene(
         surf_w = world_surface.moved(offset)
         key = (bumped, round(offset, 4))
         if cache is None or cache[0] != key:
-            cache = (key, surf_w.rotated(R).depth_map(rays))
+            seen = surf_w.rotated(R)
+            cache = (key, seen.depth_map(rays) if edge is None
+                     else edge_depth_map(seen, rays, edge))
             if model is not None:
-                model.set_static(cache[1])
+                model.set_static(cache[1], live_edges=edge is not None)
         zbuf = cache[1].copy()
         labels = np.zeros((h, w), np.uint8)
         prims, items_3d = assemble_scene(script, surf_w, t)
@@ -240,6 +246,8 @@ def render_scene(
             labels_out[i] = labels
     doc = _truth_doc(scene, seed, profile.name, rays, fps, world_surface, distance_m, tilt_deg,
                      script, truth, n if first_busy is None else first_busy)
+    if edge is not None:
+        doc["edge"] = edge_doc(edge, world_surface, rays)
     rec = SimRecording(depth, np.arange(n, dtype=np.float64) / fps, 0.001, rays.K.copy(), doc,
                        labels_out)
     if breathing_mm > 0:
