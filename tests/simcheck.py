@@ -3,8 +3,13 @@
 from __future__ import annotations
 
 import math
+from pathlib import Path
 from typing import Any
 
+import pytest
+
+from depthtouch.errors import ConfigError
+from depthtouch.evaluation.suite import load_suite
 from depthtouch.sim import finger_label
 
 
@@ -33,3 +38,16 @@ def check_contacts_on_fingertips(rec: Any, behind_mm: float) -> int:
             assert c["Z"] - 2.0 * r <= deepest <= c["Z"] + behind_mm
             checked += 1
     return checked
+
+
+def check_suite_group_key(tmp_path: Path, key: str, good: str, want: float, bad: str,
+                          error: str) -> None:
+    """A one-group suite file whose group sets ``key = good`` gives one case with
+    ``key == want``; with ``key = bad`` loading it is a ConfigError matching ``error``."""
+    p = tmp_path / "s.toml"
+    head = '[suite]\nname = "s"\n[[group]]\nscenes = ["taps"]\ncameras = ["kinect-v2"]\n'
+    p.write_text(f"{head}distances_m = [1.0]\n{key} = {good}\n")
+    assert [getattr(c, key) for c in load_suite(str(p)).cases] == [want]
+    p.write_text(f"{head}distances_m = [1.0]\n{key} = {bad}\n")
+    with pytest.raises(ConfigError, match=error):
+        load_suite(str(p))

@@ -8,6 +8,7 @@ from depthtouch.evaluation.suite import SuiteCase, load_suite
 from depthtouch.evaluation.truth import truth_from_dict
 from depthtouch.sim import render_scene
 from depthtouch.sim.breathing import breathe, check_breathing, offsets_mm
+from simcheck import check_suite_group_key
 
 
 def test_offsets_are_seeded_wobble_and_jump_at_the_documented_scale():
@@ -67,13 +68,7 @@ def test_suites_name_and_render_the_option():
 
 
 def test_a_suite_group_takes_breathing_mm(tmp_path):
-    p = tmp_path / "s.toml"
-    p.write_text('[suite]\nname = "b"\n[[group]]\nscenes = ["taps"]\ncameras = ["kinect-v2"]\n'
-                 'distances_m = [1.0]\nbreathing_mm = 2.5\n')
-    assert [c.breathing_mm for c in load_suite(str(p)).cases] == [2.5]
-    p.write_text(p.read_text().replace("2.5", "11"))
-    with pytest.raises(ConfigError, match="breathing_mm"):
-        load_suite(str(p))
+    check_suite_group_key(tmp_path, "breathing_mm", "2.5", 2.5, "11", "breathing_mm")
 
 
 def test_the_sim_command_writes_a_breathing_recording_and_refuses_it_with_views(tmp_path, capsys):

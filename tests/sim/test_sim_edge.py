@@ -4,12 +4,14 @@ import json
 
 import numpy as np
 import pytest
+from scipy.ndimage import binary_dilation, binary_erosion
 
 from depthtouch.errors import ConfigError
 from depthtouch.evaluation.suite import SuiteCase, load_suite
 from depthtouch.sim import render_scene
 from depthtouch.sim.edge import check_edge
 from depthtouch.sim.geometry import Rays
+from simcheck import check_suite_group_key
 
 
 @pytest.mark.parametrize("bad", [-1.0, 50.0, 2000.0, True, "700", None])
@@ -46,7 +48,6 @@ def test_beyond_the_edge_lies_the_floor_and_the_touches_stay_as_they_were(camera
     first = rec.depth[0].astype(np.float64)  # empty: the surface and the floor only
     ok = (first > 0) & (full.depth[0] > 0)
     # away from the edge: the floor ~700 mm farther (a plane seen head-on), the table as before
-    from scipy.ndimage import binary_erosion
     far, near = binary_erosion(beyond, iterations=4), binary_erosion(~beyond, iterations=4)
     step = np.median(first[far & ok]) - np.median(full.depth[0][far & ok].astype(np.float64))
     assert 690.0 < step < 710.0
@@ -63,17 +64,11 @@ def test_the_step_has_artefacts_every_frame_at_a_tof_camera():
     rec = render_scene("taps", camera="kinect-v2", seed=1, resolution_scale=0.5, distance_m=1.3,
                        edge_mm=700.0)
     beyond = _beyond(rec)
-    from scipy.ndimage import binary_dilation
-    band = binary_dilation(beyond, iterations=2) & ~binary_erosion_(beyond)
+    band = binary_dilation(beyond, iterations=2) & ~binary_erosion(beyond, iterations=2)
     d = rec.depth[:40].astype(np.float64)[:, band]
     # between the table (1300) and the floor (2000): mixed pixels, at other pixels each frame
     mid = (d > 1400) & (d < 1900)
     assert mid.sum() > 10 and (mid.sum(0) > 0).sum() > 2 * mid.sum(0).max()
-
-
-def binary_erosion_(m: np.ndarray) -> np.ndarray:
-    from scipy.ndimage import binary_erosion
-    return binary_erosion(m, iterations=2)
 
 
 def test_suites_name_and_render_the_option(tmp_path):
@@ -86,13 +81,7 @@ def test_suites_name_and_render_the_option(tmp_path):
     assert s.cases[0].cache_key() != hard.cases[0].cache_key()
     with pytest.raises(ConfigError, match="out of range"):
         hard.with_edge(20.0)
-    p = tmp_path / "s.toml"
-    p.write_text('[suite]\nname = "e"\n[[group]]\nscenes = ["taps"]\ncameras = ["kinect-v2"]\n'
-                 'distances_m = [1.0]\nedge_mm = 600\n')
-    assert [c.edge_mm for c in load_suite(str(p)).cases] == [600.0]
-    p.write_text(p.read_text().replace("600", "60"))
-    with pytest.raises(ConfigError, match="group group0: edge drop 60"):
-        load_suite(str(p))
+    check_suite_group_key(tmp_path, "edge_mm", "600", 600.0, "60", "group group0: edge drop 60")
 
 
 def test_the_commands_take_the_option_and_refuse_it_where_it_means_nothing(tmp_path, capsys):

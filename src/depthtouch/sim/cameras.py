@@ -265,11 +265,7 @@ class NoiseModel:
         edge_missing = self._edge_effects(z, sigma, None)[0]
         self._edge_box = None
         if live_edges:
-            zf = np.where(z > 0, z, np.float32(p.max_range_mm))
-            kernel = np.ones((3, 3), np.uint8)
-            jump = (cv2.dilate(zf, kernel) - cv2.erode(zf, kernel)) > \
-                (np.float32(20.0) + np.float32(6.0) * sigma)
-            ys, xs = np.nonzero(jump)
+            ys, xs = np.nonzero(self._jumps(z, sigma)[0])
             if ys.size:
                 self._edge_box = (int(xs.min()), int(ys.min()), int(xs.max()) + 1,
                                   int(ys.max()) + 1)
@@ -415,6 +411,16 @@ class NoiseModel:
             hidden |= r < 0
         return hidden
 
+    def _jumps(self, z: np.ndarray, sigma: np.ndarray
+               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Depth edges (a jump well beyond the noise inside a 3x3 neighbourhood; missing
+        depths read as the profile's range limit), and the 3x3 minimum and maximum depth."""
+        kernel = np.ones((3, 3), np.uint8)
+        zf = np.where(z > 0, z, np.float32(self.profile.max_range_mm))
+        zmax = cv2.dilate(zf, kernel)
+        zmin = cv2.erode(zf, kernel)
+        return (zmax - zmin) > (np.float32(20.0) + np.float32(6.0) * sigma), zmin, zmax
+
     def _edge_effects(
         self, z: np.ndarray, sigma: np.ndarray, noisy: np.ndarray | None
     ) -> tuple[np.ndarray, np.ndarray | None]:
@@ -422,12 +428,7 @@ class NoiseModel:
         p = self.profile
         if p.flying_prob <= 0 and p.edge_jitter_prob <= 0 and p.edge_dropout_prob <= 0:
             return np.zeros(z.shape, bool), None
-        kernel = np.ones((3, 3), np.uint8)
-        zf = np.where(z > 0, z, np.float32(p.max_range_mm))
-        zmax = cv2.dilate(zf, kernel)
-        zmin = cv2.erode(zf, kernel)
-        # a jump well beyond the noise inside a 3x3 neighbourhood
-        edges = (zmax - zmin) > (np.float32(20.0) + np.float32(6.0) * sigma)
+        edges, zmin, zmax = self._jumps(z, sigma)
         missing = np.zeros(z.shape, bool)
         # next to a missing pixel there is no far side to mix with: such edge pixels go missing
         beside_hole = edges & (zmax >= np.float32(p.max_range_mm))

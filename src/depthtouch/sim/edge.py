@@ -114,26 +114,29 @@ def place_edge(script: Script, surface: Surface, drop_mm: float, seed: int) -> E
     return Edge((float(fwd[0]), float(fwd[1])), c, float(drop_mm), margin)
 
 
+def _beyond(surface: Surface, rays: Rays, edge: Edge) -> tuple[np.ndarray, np.ndarray]:
+    """The surface's depth map (float32 (H, W), 0 where a ray misses) and where its pixels lie
+    beyond the edge (bool (H, W))."""
+    near = surface.depth_map(rays)
+    p = np.stack([rays.xn * near, rays.yn * near, near.astype(np.float64)], -1).reshape(-1, 3)
+    beyond = (surface.st_of(p) @ np.asarray(edge.dir_st) < edge.c_mm).reshape(near.shape)
+    return near, beyond
+
+
 def edge_depth_map(surface: Surface, rays: Rays, edge: Edge) -> np.ndarray:
     """float32 (H, W) depth (mm): the surface on its side of the edge, beyond it the surface
     moved ``drop_mm`` away from the camera; 0 where a ray misses."""
-    near = surface.depth_map(rays)
+    near, beyond = _beyond(surface, rays, edge)
     far = surface.moved(-edge.drop_mm).depth_map(rays)
-    p = np.stack([rays.xn * near, rays.yn * near, near.astype(np.float64)], -1).reshape(-1, 3)
-    st = surface.st_of(p).reshape(near.shape + (2,))
-    beyond = (st[..., 0] * edge.dir_st[0] + st[..., 1] * edge.dir_st[1] < edge.c_mm) | (near <= 0)
-    return np.where(beyond, far, near).astype(np.float32)
+    return np.where(beyond | (near <= 0), far, near).astype(np.float32)
 
 
 def edge_doc(edge: Edge, surface: Surface, rays: Rays) -> dict[str, Any]:
     """The truth document's ``edge``: the direction and offset in surface mm, the drop, the
     margin, and the share of the view beyond the edge."""
-    near = surface.depth_map(rays)
-    p = np.stack([rays.xn * near, rays.yn * near, near.astype(np.float64)], -1).reshape(-1, 3)
-    st = surface.st_of(p)
-    ok = near.reshape(-1) > 0
-    beyond = float(np.mean(st[ok] @ np.asarray(edge.dir_st) < edge.c_mm)) if ok.any() else 0.0
+    near, beyond = _beyond(surface, rays, edge)
+    ok = near > 0
     return {"dir_st": [round(v, 9) for v in edge.dir_st], "c_mm": round(edge.c_mm, 3),
             "drop_mm": edge.drop_mm, "margin_mm": round(edge.margin_mm, 3),
-            "share_beyond": round(beyond, 4)}
+            "share_beyond": round(float(beyond[ok].mean()) if ok.any() else 0.0, 4)}
 
